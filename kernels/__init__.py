@@ -1,0 +1,4 @@
+"""Warp kernels of warpsoft (``warpsoft.kernels``): kernels and device functions only.
+
+Nothing here imports from ``warpsoft``; orchestration lives there.
+"""

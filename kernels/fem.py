@@ -1,0 +1,220 @@
+"""Corotational linear tetrahedra: precomputation, rotations, forces, stiffness products.
+
+Conventions (all kernels, float64):
+- ``tets[e]`` holds the four node ids ``(i0, i1, i2, i3)`` of element ``e`` with positive
+  rest volume ``(X1-X0) . ((X2-X0) x (X3-X0)) / 6 > 0``.
+- ``dm_inv[e]`` is ``Dm^-1`` with ``Dm = [X1-X0, X2-X0, X3-X0]`` (m^-1). Row ``k`` of it is the
+  gradient of the shape function of node ``k+1``; node 0's gradient is minus their sum.
+- ``F = Ds Dm^-1`` (``Ds`` from current positions); ``R`` is the rotation of its polar
+  decomposition, reflection-free also for inverted elements.
+- Linear strain in the rotated frame ``eps = sym(R^T F) - I``; stress
+  ``sigma = 2 mu eps + lam tr(eps) I`` (Pa). Internal force on node ``a``:
+  ``f_a = -V R sigma g_a`` (N). The stiffness ``K = R K0 R^T`` (rotation not differentiated).
+"""
+
+import warp as wp
+
+
+@wp.func
+def shape_gradient(dm_inv: wp.mat33d, a: int) -> wp.vec3d:
+    """Gradient (m^-1) of node ``a``'s linear shape function in the rest configuration."""
+    g1 = wp.vec3d(dm_inv[0, 0], dm_inv[0, 1], dm_inv[0, 2])
+    g2 = wp.vec3d(dm_inv[1, 0], dm_inv[1, 1], dm_inv[1, 2])
+    g3 = wp.vec3d(dm_inv[2, 0], dm_inv[2, 1], dm_inv[2, 2])
+    if a == 1:
+        return g1
+    if a == 2:
+        return g2
+    if a == 3:
+        return g3
+    return -(g1 + g2 + g3)
+
+
+@wp.func
+def edge_matrix(x0: wp.vec3d, x1: wp.vec3d, x2: wp.vec3d, x3: wp.vec3d) -> wp.mat33d:
+    """Columns ``x1-x0, x2-x0, x3-x0``."""
+    a = x1 - x0
+    b = x2 - x0
+    c = x3 - x0
+    return wp.mat33d(a[0], b[0], c[0], a[1], b[1], c[1], a[2], b[2], c[2])
+
+
+@wp.func
+def polar_rotation(F: wp.mat33d) -> wp.mat33d:
+    """Rotation ``R`` (det +1) closest to ``F``; for ``det F <= 0`` the smallest singular
+    direction is flipped so that ``R`` stays a rotation (inverted elements recover)."""
+    U = wp.mat33d()
+    s = wp.vec3d()
+    V = wp.mat33d()
+    wp.svd3(F, U, s, V)
+    R = U * wp.transpose(V)
+    if wp.determinant(R) < wp.float64(0.0):
+        # svd3 sorts singular values in decreasing order: flip the last column of U
+        U = wp.mat33d(U[0, 0], U[0, 1], -U[0, 2], U[1, 0], U[1, 1], -U[1, 2], U[2, 0], U[2, 1], -U[2, 2])
+        R = U * wp.transpose(V)
+    return R
+
+
+@wp.func
+def hooke(eps: wp.mat33d, mu: wp.float64, lam: wp.float64) -> wp.mat33d:
+    """Linear isotropic stress (Pa) of a symmetric strain."""
+    tr = eps[0, 0] + eps[1, 1] + eps[2, 2]
+    return wp.float64(2.0) * mu * eps + lam * tr * wp.identity(n=3, dtype=wp.float64)
+
+
+@wp.kernel
+def tet_rest_shape(
+    rest: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+):
+    """Rest edge-matrix inverse and signed volume (m^3) of each element."""
+    e = wp.tid()
+    t = tets[e]
+    Dm = edge_matrix(rest[t[0]], rest[t[1]], rest[t[2]], rest[t[3]])
+    det = wp.determinant(Dm)
+    volume[e] = det / wp.float64(6.0)
+    if det != wp.float64(0.0):
+        dm_inv[e] = wp.inverse(Dm)
+
+
+@wp.kernel
+def corotational_forces(
+    q: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    force: wp.array(dtype=wp.vec3d),
+):
+    """Linearize: store each element's rotation and scatter its internal forces (N)."""
+    e = wp.tid()
+    t = tets[e]
+    Di = dm_inv[e]
+    F = edge_matrix(q[t[0]], q[t[1]], q[t[2]], q[t[3]]) * Di
+    R = polar_rotation(F)
+    rot[e] = R
+    eps_full = wp.transpose(R) * F
+    eps = wp.float64(0.5) * (eps_full + wp.transpose(eps_full)) - wp.identity(n=3, dtype=wp.float64)
+    P = volume[e] * (R * hooke(eps, mu[e], lam[e]))
+    for a in range(4):
+        wp.atomic_sub(force, t[a], P * shape_gradient(Di, a))
+
+
+@wp.kernel
+def stiffness_product(
+    x: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    scale: wp.float64,
+    y: wp.array(dtype=wp.vec3d),
+):
+    """``y += scale * K x`` element by element, ``K_e = R (V B^T C B) R^T``; nothing stored."""
+    e = wp.tid()
+    t = tets[e]
+    Di = dm_inv[e]
+    R = rot[e]
+    G = wp.mat33d()
+    for a in range(4):
+        G += wp.outer(wp.transpose(R) * x[t[a]], shape_gradient(Di, a))
+    eps = wp.float64(0.5) * (G + wp.transpose(G))
+    P = (scale * volume[e]) * (R * hooke(eps, mu[e], lam[e]))
+    for a in range(4):
+        wp.atomic_add(y, t[a], P * shape_gradient(Di, a))
+
+
+@wp.func
+def stiffness_block(ga: wp.vec3d, gb: wp.vec3d, mu: wp.float64, lam: wp.float64) -> wp.mat33d:
+    """Unrotated 3x3 block ``K0_ab / V`` coupling nodes ``a`` and ``b`` (Pa m^-2)."""
+    return mu * wp.dot(ga, gb) * wp.identity(n=3, dtype=wp.float64) + mu * wp.outer(gb, ga) + lam * wp.outer(
+        ga, gb
+    )
+
+
+@wp.kernel
+def stiffness_diagonal(
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    diag: wp.array(dtype=wp.mat33d),
+):
+    """Accumulate the 3x3 diagonal blocks of ``K`` (N/m) per node."""
+    e = wp.tid()
+    t = tets[e]
+    Di = dm_inv[e]
+    R = rot[e]
+    for a in range(4):
+        g = shape_gradient(Di, a)
+        Kaa = volume[e] * (R * stiffness_block(g, g, mu[e], lam[e]) * wp.transpose(R))
+        wp.atomic_add(diag, t[a], Kaa)
+
+
+@wp.kernel
+def stiffness_blocks(
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    blocks: wp.array(dtype=wp.mat33d),
+):
+    """All sixteen rotated 3x3 blocks of each element's stiffness, for sparse assembly
+    (direct solver only): ``blocks[16 e + 4 a + b] = V R K0_ab R^T`` (N/m)."""
+    e = wp.tid()
+    Di = dm_inv[e]
+    R = rot[e]
+    for a in range(4):
+        ga = shape_gradient(Di, a)
+        for b in range(4):
+            gb = shape_gradient(Di, b)
+            blocks[16 * e + 4 * a + b] = volume[e] * (R * stiffness_block(ga, gb, mu[e], lam[e]) * wp.transpose(R))
+
+
+@wp.kernel
+def elastic_energy(
+    q: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    energy: wp.array(dtype=wp.float64),
+):
+    """Corotational strain energy (J) summed into ``energy[0]``."""
+    e = wp.tid()
+    t = tets[e]
+    F = edge_matrix(q[t[0]], q[t[1]], q[t[2]], q[t[3]]) * dm_inv[e]
+    R = polar_rotation(F)
+    RF = wp.transpose(R) * F
+    eps = wp.float64(0.5) * (RF + wp.transpose(RF)) - wp.identity(n=3, dtype=wp.float64)
+    sig = hooke(eps, mu[e], lam[e])
+    w = wp.float64(0.0)
+    for i in range(3):
+        for j in range(3):
+            w += eps[i, j] * sig[i, j]
+    wp.atomic_add(energy, 0, wp.float64(0.5) * volume[e] * w)
+
+
+@wp.kernel
+def lumped_mass(
+    tets: wp.array(dtype=wp.vec4i),
+    volume: wp.array(dtype=wp.float64),
+    density: wp.array(dtype=wp.float64),
+    mass: wp.array(dtype=wp.float64),
+):
+    """Lumped nodal masses (kg): a quarter of each element's mass to each of its nodes."""
+    e = wp.tid()
+    t = tets[e]
+    m = wp.float64(0.25) * density[e] * volume[e]
+    for a in range(4):
+        wp.atomic_add(mass, t[a], m)
