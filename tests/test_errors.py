@@ -1,0 +1,110 @@
+"""Bad input gets a clear error naming the component and the value; nothing is lost."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import warpsoft as ws
+
+MESH = ws.box_grid((0, 0, 0), (0.04, 0.01, 0.01), (4, 1, 1))
+MAT = ws.Material(1e5, 0.3, 1000.0)
+CLAMP = ws.Plane((0, 0, 0), (1, 0, 0))
+
+
+@pytest.mark.parametrize("kw,match", [
+    ({"young_modulus": 0.0}, r"young_modulus must be > 0 Pa, got 0.0"),
+    ({"young_modulus": -5.0}, r"young_modulus must be > 0 Pa, got -5.0"),
+    ({"poisson_ratio": 0.5}, r"poisson_ratio must lie in \(-1, 0.5\), got 0.5"),
+    ({"poisson_ratio": -1.2}, r"poisson_ratio .* got -1.2"),
+    ({"young_modulus": math.nan}, r"young_modulus must be a finite number, got nan"),
+    ({"density": math.inf}, r"density must be a finite number, got inf"),
+])
+def test_bad_material(kw, match):
+    args = {"young_modulus": 1e5, "poisson_ratio": 0.3, "density": 1000.0} | kw
+    with pytest.raises(ws.SceneError, match=match):
+        ws.Material(**args)
+
+
+def test_quasi_static_body_without_fixture_is_singular():
+    scene = ws.Scene("free", static=True)
+    scene.add_body("blob", MESH, MAT)
+    with pytest.raises(ws.SceneError, match=r"quasi-static body 'blob' is free along xyz"):
+        ws.Simulator(scene)
+    scene.fix(scene.bodies[0], CLAMP, axes="x")
+    with pytest.raises(ws.SceneError, match=r"'blob' is free along yz"):
+        ws.Simulator(scene)
+
+
+def test_bad_scene_components_are_named():
+    scene = ws.Scene("s", static=True)
+    body = scene.add_body("beam", MESH, MAT)
+    with pytest.raises(ws.SceneError, match=r"body 'beam': fixed region Box.* selects no node"):
+        scene.fix(body, ws.Box((1, 1, 1), (2, 2, 2)))
+    with pytest.raises(ws.SceneError, match=r"fix axes .* got 'xw'"):
+        scene.fix(body, CLAMP, axes="xw")
+    with pytest.raises(ws.SceneError, match=r"load 'push'.*no surface triangle"):
+        scene.add_force(body, ws.Box((1, 1, 1), (2, 2, 2)), (1, 0, 0), name="push")
+    with pytest.raises(ws.SceneError, match=r"load 'nan': total force must be finite"):
+        scene.add_force(body, CLAMP, (math.nan, 0, 0), name="nan")
+    with pytest.raises(ws.SceneError, match=r"gravity must be finite"):
+        ws.Scene("g", gravity=(0, 0, math.inf))
+    with pytest.raises(ws.SceneError, match=r"dt must be > 0 s, got -0.1"):
+        ws.Scene("g", dt=-0.1)
+    with pytest.raises(ws.SceneError, match=r"a body named 'beam' exists already"):
+        scene.add_body("beam", MESH, MAT)
+    with pytest.raises(ws.SceneError, match=r"total_mass must be > 0 kg"):
+        scene.add_body("b2", MESH, MAT, total_mass=0.0)
+    scene.fix(body, CLAMP)
+    scene.add_probe("far", (1.0, 0.0, 0.0))
+    with pytest.raises(ws.SceneError, match=r"point 'far' at \[1.0, 0.0, 0.0\] m lies outside every element"):
+        ws.Simulator(scene)
+
+
+def test_time_dependent_load_returning_nan_is_named():
+    scene = ws.Scene("s", static=True)
+    body = scene.add_body("beam", MESH, MAT)
+    scene.fix(body, CLAMP)
+    scene.add_force(body, ws.Plane((0.04, 0, 0), (1, 0, 0)), lambda t: (0.0, math.nan, 0.0), name="bad")
+    sim = ws.Simulator(scene)
+    with pytest.raises(ws.SceneError, match=r"load 'bad': total\(0.01\) must return 3 finite numbers"):
+        sim.step()
+
+
+def test_nan_never_leaves_a_step_and_state_is_kept():
+    scene = ws.Scene("s", dt=0.01)
+    body = scene.add_body("beam", MESH, MAT)
+    scene.fix(body, CLAMP)
+    sim = ws.Simulator(scene)
+    before = sim.state.positions().copy()
+    v = np.zeros((sim.model.num_nodes, 3))
+    v[-1, 2] = np.nan
+    sim.state.v.assign(v)
+    with pytest.raises(ws.SimulationError, match=r"step 1 .* non-finite positions.*state before the step is kept"):
+        sim.step()
+    assert np.array_equal(sim.state.positions(), before)
+    assert sim.step_index == 0
+
+
+def test_cg_that_does_not_converge_is_reported():
+    scene = ws.Scene("s", static=True)
+    body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), MAT)
+    scene.fix(body, CLAMP)
+    scene.add_force(body, ws.Plane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.01))
+    sim = ws.Simulator(scene, max_iterations=5)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        stats = sim.step()
+    assert not stats.converged and stats.cg_iterations == 5
+    assert stats.warnings and "CG stopped after 5 iterations" in stats.warnings[0]
+    assert any(issubclass(w.category, ws.ConvergenceWarning) for w in caught)
+
+
+def test_bad_simulator_options():
+    scene = ws.Scene("s", static=True)
+    scene.fix(scene.add_body("beam", MESH, MAT), CLAMP)
+    with pytest.raises(ws.SceneError, match="solver must be 'cg' or 'direct', got 'lu'"):
+        ws.Simulator(scene, solver="lu")
+    with pytest.raises(ws.SceneError, match="tolerance must lie in"):
+        ws.Simulator(scene, tolerance=0.0)
