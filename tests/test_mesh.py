@@ -79,3 +79,15 @@ def test_bad_shape_parameters_are_named():
         ws.shapes.Box((0, 0, 0), (0.1, 0, 0.1))
     with pytest.raises(ws.SceneError, match="mesh_size"):
         ws.mesh_shape(ws.shapes.Box((0, 0, 0), (1, 1, 1)), float("nan"))
+
+
+def test_mesh_cache_returns_the_same_mesh(tmp_path, monkeypatch):
+    monkeypatch.setenv("WARPSOFT_MESH_CACHE", str(tmp_path))
+    shape = ws.shapes.Box((0, 0, 0), (0.02, 0.01, 0.01)) - ws.Ball((0.01, 0.005, 0.01), 0.004)
+    first = ws.mesh_shape(shape, 0.003, name="part")
+    files = list(tmp_path.glob("part-*.npz"))
+    assert len(files) == 1
+    again = ws.mesh_shape(shape, 0.003, name="part")
+    assert np.array_equal(first.nodes, again.nodes) and np.array_equal(first.tets, again.tets)
+    ws.mesh_shape(shape, 0.004, name="part")  # another size is another entry
+    assert len(list(tmp_path.glob("part-*.npz"))) == 2

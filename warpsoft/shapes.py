@@ -7,8 +7,11 @@ robot design is a function of its parameters and a design sweep is a loop.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -121,13 +124,33 @@ class Boolean(Shape):
 
 
 def mesh_shape(shape: Shape, mesh_size: float, name: str = "shape", optimize: bool = True) -> TetMesh:
-    """Mesh a shape with linear tetrahedra of characteristic edge length ``mesh_size`` (m)."""
-    import gmsh
+    """Mesh a shape with linear tetrahedra of characteristic edge length ``mesh_size`` (m).
 
+    If the environment variable ``WARPSOFT_MESH_CACHE`` names a folder, meshes are kept
+    there (keyed by the shape's description and the settings) and read back instead of
+    re-meshed: design sweeps skip gmsh, and machines without gmsh can run prepared scenes.
+    """
     if not isinstance(shape, Shape):
         raise SceneError(f"mesh_shape: expected a Shape, got {type(shape).__name__}")
     if not (isinstance(mesh_size, (int, float)) and math.isfinite(mesh_size) and mesh_size > 0):
         raise SceneError(f"mesh '{name}': mesh_size must be a finite number > 0 m, got {mesh_size!r}")
+    cache = os.environ.get("WARPSOFT_MESH_CACHE")
+    if cache:
+        key = hashlib.sha1(f"{shape!r}|{float(mesh_size)!r}|{optimize}".encode()).hexdigest()[:16]
+        path = Path(cache) / f"{name}-{key}.npz"
+        if path.is_file():
+            with np.load(path) as data:
+                return TetMesh(data["nodes"], data["tets"], name=name)
+        mesh = _gmsh_mesh(shape, float(mesh_size), name, optimize)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path, nodes=mesh.nodes, tets=mesh.tets)
+        return mesh
+    return _gmsh_mesh(shape, float(mesh_size), name, optimize)
+
+
+def _gmsh_mesh(shape: Shape, mesh_size: float, name: str, optimize: bool) -> TetMesh:
+    import gmsh
+
     gmsh.initialize(interruptible=False)
     try:
         gmsh.option.setNumber("General.Terminal", 0)
