@@ -16,9 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from warpsoft.runner import build_scene, parse_params, run  # noqa: E402
+from warpsoft.runner import build_scene, parse_params, run
 
 
 def main(argv=None) -> int:
