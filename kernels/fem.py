@@ -106,7 +106,7 @@ def corotational_forces(
 
 @wp.kernel
 def stiffness_product(
-    x: wp.array(dtype=wp.vec3d),
+    x: wp.array2d(dtype=wp.vec3d),
     tets: wp.array(dtype=wp.vec4i),
     dm_inv: wp.array(dtype=wp.mat33d),
     volume: wp.array(dtype=wp.float64),
@@ -114,20 +114,29 @@ def stiffness_product(
     lam: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
     scale: wp.float64,
-    y: wp.array(dtype=wp.vec3d),
+    y: wp.array2d(dtype=wp.vec3d),
 ):
-    """``y += scale * K x`` element by element, ``K_e = R (V B^T C B) R^T``; nothing stored."""
+    """``y[c] += scale * K x[c]`` for every column ``c``, element by element with
+    ``K_e = R (V B^T C B) R^T``: each element's data is read once for all columns."""
     e = wp.tid()
     t = tets[e]
     Di = dm_inv[e]
     R = rot[e]
-    G = wp.mat33d()
-    for a in range(4):
-        G += wp.outer(wp.transpose(R) * x[t[a]], shape_gradient(Di, a))
-    eps = wp.float64(0.5) * (G + wp.transpose(G))
-    P = (scale * volume[e]) * (R * hooke(eps, mu[e], lam[e]))
-    for a in range(4):
-        wp.atomic_add(y, t[a], P * shape_gradient(Di, a))
+    Rt = wp.transpose(R)
+    g0 = shape_gradient(Di, 0)
+    g1 = shape_gradient(Di, 1)
+    g2 = shape_gradient(Di, 2)
+    g3 = shape_gradient(Di, 3)
+    s = scale * volume[e]
+    for c in range(x.shape[0]):
+        G = (wp.outer(Rt * x[c, t[0]], g0) + wp.outer(Rt * x[c, t[1]], g1) + wp.outer(Rt * x[c, t[2]], g2)
+             + wp.outer(Rt * x[c, t[3]], g3))
+        eps = wp.float64(0.5) * (G + wp.transpose(G))
+        P = s * (R * hooke(eps, mu[e], lam[e]))
+        wp.atomic_add(y, c, t[0], P * g0)
+        wp.atomic_add(y, c, t[1], P * g1)
+        wp.atomic_add(y, c, t[2], P * g2)
+        wp.atomic_add(y, c, t[3], P * g3)
 
 
 @wp.func

@@ -1,10 +1,11 @@
-"""Vector kernels of the block-Jacobi preconditioned conjugate gradient.
+"""Vector kernels of the batched block-Jacobi preconditioned conjugate gradient.
 
-The CG scalars live on the device in ``scal`` (float64) so that an iteration needs no
-host round trip (a CUDA graph can replay it); the host only reads them to test
-convergence. Slots: see ``RZ`` ... ``B2`` below. ``mask`` holds 1 for a free DOF and 0
-for a fixed one: every residual and product is projected with it, so fixed DOFs of the
-unknown stay at zero.
+``k`` independent systems with the same matrix are solved at once: vectors are 2-D
+arrays ``(k, n)`` of vec3d (column ``c``, node ``i``), launched over ``(k, n)``. The CG
+scalars of each column live on the device in ``scal[c, slot]`` (float64) so that an
+iteration needs no host round trip; the host only reads them to test convergence.
+``mask`` holds 1 for a free DOF and 0 for a fixed one: every residual and product is
+projected with it, so fixed DOFs of the unknowns stay at zero.
 """
 
 import warp as wp
@@ -20,11 +21,11 @@ NUM_SCALARS = 8
 
 
 @wp.kernel
-def mass_product(x: wp.array(dtype=wp.vec3d), mass: wp.array(dtype=wp.float64), scale: wp.float64,
-                 y: wp.array(dtype=wp.vec3d)):
+def mass_product(x: wp.array2d(dtype=wp.vec3d), mass: wp.array(dtype=wp.float64), scale: wp.float64,
+                 y: wp.array2d(dtype=wp.vec3d)):
     """``y = scale * M x`` with a lumped mass (kg); starts a matrix-free product."""
-    i = wp.tid()
-    y[i] = (scale * mass[i]) * x[i]
+    c, i = wp.tid()
+    y[c, i] = (scale * mass[i]) * x[c, i]
 
 
 @wp.kernel
@@ -53,88 +54,110 @@ def block_jacobi_inverse(
 
 
 @wp.kernel
-def cg_start(
-    b: wp.array(dtype=wp.vec3d),
-    ax: wp.array(dtype=wp.vec3d),
-    mask: wp.array(dtype=wp.vec3d),
-    precond: wp.array(dtype=wp.mat33d),
-    r: wp.array(dtype=wp.vec3d),
-    z: wp.array(dtype=wp.vec3d),
-    p: wp.array(dtype=wp.vec3d),
-    scal: wp.array(dtype=wp.float64),
-):
-    """``r = P(b - A x0)``, ``z = M^-1 r``, ``p = z``; accumulates ``r.z``, ``r.r``, ``b.b``."""
-    i = wp.tid()
-    m = mask[i]
-    bi = wp.cw_mul(m, b[i])
-    ri = bi - wp.cw_mul(m, ax[i])
-    zi = precond[i] * ri
-    r[i] = ri
-    z[i] = zi
-    p[i] = zi
-    wp.atomic_add(scal, RZ, wp.dot(ri, zi))
-    wp.atomic_add(scal, R2_LAST, wp.dot(ri, ri))
-    wp.atomic_add(scal, B2, wp.dot(bi, bi))
+def project(mask: wp.array(dtype=wp.vec3d), x: wp.array2d(dtype=wp.vec3d)):
+    """Zero the fixed DOFs of every column."""
+    c, i = wp.tid()
+    x[c, i] = wp.cw_mul(mask[i], x[c, i])
 
 
 @wp.kernel
-def cg_curvature(p: wp.array(dtype=wp.vec3d), ap: wp.array(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d),
-                 scal: wp.array(dtype=wp.float64)):
+def cg_start(
+    b: wp.array2d(dtype=wp.vec3d),
+    ax: wp.array2d(dtype=wp.vec3d),
+    mask: wp.array(dtype=wp.vec3d),
+    precond: wp.array(dtype=wp.mat33d),
+    r: wp.array2d(dtype=wp.vec3d),
+    z: wp.array2d(dtype=wp.vec3d),
+    p: wp.array2d(dtype=wp.vec3d),
+    scal: wp.array2d(dtype=wp.float64),
+):
+    """``r = P(b - A x0)``, ``z = M^-1 r``, ``p = z``; accumulates ``r.z``, ``r.r``, ``b.b``."""
+    c, i = wp.tid()
+    m = mask[i]
+    bi = wp.cw_mul(m, b[c, i])
+    ri = bi - wp.cw_mul(m, ax[c, i])
+    zi = precond[i] * ri
+    r[c, i] = ri
+    z[c, i] = zi
+    p[c, i] = zi
+    wp.atomic_add(scal, c, RZ, wp.dot(ri, zi))
+    wp.atomic_add(scal, c, R2_LAST, wp.dot(ri, ri))
+    wp.atomic_add(scal, c, B2, wp.dot(bi, bi))
+
+
+@wp.kernel
+def cg_clear_zero_columns(scal: wp.array2d(dtype=wp.float64), x: wp.array2d(dtype=wp.vec3d),
+                          p: wp.array2d(dtype=wp.vec3d)):
+    """A column with ``b = 0`` has the solution 0, whatever its warm start."""
+    c, i = wp.tid()
+    if scal[c, B2] == wp.float64(0.0):
+        x[c, i] = wp.vec3d()
+        p[c, i] = wp.vec3d()
+
+
+@wp.kernel
+def cg_curvature(p: wp.array2d(dtype=wp.vec3d), ap: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d),
+                 scal: wp.array2d(dtype=wp.float64)):
     """Project ``A p`` and accumulate ``p . A p``."""
-    i = wp.tid()
-    api = wp.cw_mul(mask[i], ap[i])
-    ap[i] = api
-    wp.atomic_add(scal, PAP, wp.dot(p[i], api))
+    c, i = wp.tid()
+    api = wp.cw_mul(mask[i], ap[c, i])
+    ap[c, i] = api
+    wp.atomic_add(scal, c, PAP, wp.dot(p[c, i], api))
 
 
 @wp.kernel
 def cg_update(
-    x: wp.array(dtype=wp.vec3d),
-    r: wp.array(dtype=wp.vec3d),
-    z: wp.array(dtype=wp.vec3d),
-    p: wp.array(dtype=wp.vec3d),
-    ap: wp.array(dtype=wp.vec3d),
+    x: wp.array2d(dtype=wp.vec3d),
+    r: wp.array2d(dtype=wp.vec3d),
+    z: wp.array2d(dtype=wp.vec3d),
+    p: wp.array2d(dtype=wp.vec3d),
+    ap: wp.array2d(dtype=wp.vec3d),
     precond: wp.array(dtype=wp.mat33d),
-    scal: wp.array(dtype=wp.float64),
+    scal: wp.array2d(dtype=wp.float64),
 ):
     """``x += alpha p``, ``r -= alpha A p``, ``z = M^-1 r``; accumulates ``r.z`` and ``r.r``."""
-    i = wp.tid()
+    c, i = wp.tid()
     alpha = wp.float64(0.0)
-    if scal[PAP] > wp.float64(0.0):
-        alpha = scal[RZ] / scal[PAP]
-    x[i] = x[i] + alpha * p[i]
-    ri = r[i] - alpha * ap[i]
+    if scal[c, PAP] > wp.float64(0.0):
+        alpha = scal[c, RZ] / scal[c, PAP]
+    x[c, i] = x[c, i] + alpha * p[c, i]
+    ri = r[c, i] - alpha * ap[c, i]
     zi = precond[i] * ri
-    r[i] = ri
-    z[i] = zi
-    wp.atomic_add(scal, RZ_NEW, wp.dot(ri, zi))
-    wp.atomic_add(scal, R2, wp.dot(ri, ri))
+    r[c, i] = ri
+    z[c, i] = zi
+    wp.atomic_add(scal, c, RZ_NEW, wp.dot(ri, zi))
+    wp.atomic_add(scal, c, R2, wp.dot(ri, ri))
 
 
 @wp.kernel
-def cg_scalars(scal: wp.array(dtype=wp.float64)):
-    """One thread: ``beta = rz_new / rz``, roll the accumulators over for the next iteration."""
+def cg_scalars(scal: wp.array2d(dtype=wp.float64)):
+    """One thread per column: ``beta = rz_new / rz``, roll the accumulators over."""
+    c = wp.tid()
     beta = wp.float64(0.0)
-    if scal[RZ] > wp.float64(0.0):
-        beta = scal[RZ_NEW] / scal[RZ]
-    scal[BETA] = beta
-    scal[RZ] = scal[RZ_NEW]
-    scal[R2_LAST] = scal[R2]
-    scal[RZ_NEW] = wp.float64(0.0)
-    scal[PAP] = wp.float64(0.0)
-    scal[R2] = wp.float64(0.0)
+    if scal[c, RZ] > wp.float64(0.0):
+        beta = scal[c, RZ_NEW] / scal[c, RZ]
+    scal[c, BETA] = beta
+    scal[c, RZ] = scal[c, RZ_NEW]
+    scal[c, R2_LAST] = scal[c, R2]
+    scal[c, RZ_NEW] = wp.float64(0.0)
+    scal[c, PAP] = wp.float64(0.0)
+    scal[c, R2] = wp.float64(0.0)
 
 
 @wp.kernel
-def cg_direction(z: wp.array(dtype=wp.vec3d), p: wp.array(dtype=wp.vec3d), scal: wp.array(dtype=wp.float64)):
+def cg_direction(z: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d), scal: wp.array2d(dtype=wp.float64)):
     """``p = z + beta p``."""
-    i = wp.tid()
-    p[i] = z[i] + scal[BETA] * p[i]
+    c, i = wp.tid()
+    p[c, i] = z[c, i] + scal[c, BETA] * p[c, i]
 
 
 @wp.kernel
-def count_nonfinite(x: wp.array(dtype=wp.vec3d), flag: wp.array(dtype=wp.int32)):
-    """``flag[0]`` counts entries of ``x`` that are NaN or infinite."""
+def step_health(x: wp.array(dtype=wp.vec3d), dx: wp.array(dtype=wp.vec3d), bad: wp.array(dtype=wp.int32),
+                largest: wp.array(dtype=wp.float64)):
+    """``bad[0]`` counts nodes of ``x`` that are NaN or infinite; ``largest[0]`` is the largest
+    squared step ``|dx|^2`` (m^2) of a finite node."""
     i = wp.tid()
     if not wp.isfinite(x[i]):
-        wp.atomic_add(flag, 0, 1)
+        wp.atomic_add(bad, 0, 1)
+    else:
+        wp.atomic_max(largest, 0, wp.dot(dx[i], dx[i]))

@@ -15,3 +15,35 @@ def interpolate_points(
     n = nodes[p]
     w = weights[p]
     out[p] = w[0] * q[n[0]] + w[1] * q[n[1]] + w[2] * q[n[2]] + w[3] * q[n[3]]
+
+
+@wp.kernel
+def effector_rows(
+    points: wp.array(dtype=wp.vec3d),
+    point_nodes: wp.array(dtype=wp.vec4i),
+    point_weights: wp.array(dtype=wp.vec4d),
+    point: wp.array(dtype=wp.int32),
+    axis: wp.array(dtype=wp.int32),
+    target: wp.array(dtype=wp.float64),
+    row: wp.array(dtype=wp.int32),
+    entry_offset: int,
+    delta: wp.array(dtype=wp.float64),
+    h_row: wp.array(dtype=wp.int32),
+    h_node: wp.array(dtype=wp.int32),
+    h_coef: wp.array(dtype=wp.vec3d),
+):
+    """One thread per effector axis: ``delta = x(p)[axis] - target`` (m), ``H`` = mapping weights."""
+    k = wp.tid()
+    p = point[k]
+    ax = axis[k]
+    r = row[k]
+    delta[r] = points[p][ax] - target[k]
+    unit = wp.vec3d()
+    unit[ax] = wp.float64(1.0)
+    nodes = point_nodes[p]
+    w = point_weights[p]
+    for a in range(4):
+        e = entry_offset + 4 * k + a
+        h_row[e] = r
+        h_node[e] = nodes[a]
+        h_coef[e] = w[a] * unit

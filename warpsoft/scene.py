@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .constraints import Cable, Cavity, Effector
 from .errors import SceneError
 from .material import Material
 from .mesh import TetMesh
@@ -129,6 +130,9 @@ class Scene:
         self.fixtures: list[Fixture] = []
         self.loads: list[Load] = []
         self.probes: list[Probe] = []
+        self.cables: list[Cable] = []
+        self.cavities: list[Cavity] = []
+        self.effectors: list[Effector] = []
         self.rayleigh_mass = 0.0
         self.rayleigh_stiffness = 0.0
         self.params: dict = {}
@@ -181,6 +185,64 @@ class Scene:
         probe = Probe(str(name), _vec3(point, f"probe '{name}': point"))
         self.probes.append(probe)
         return probe
+
+    def add_cable(self, name: str, body: Body, points, pull_point, mode: str = "displacement",
+                  value: float | Callable[[float], float] = 0.0, min_force: float = 0.0, max_force: float = math.inf,
+                  min_displacement: float = -math.inf, max_displacement: float = math.inf,
+                  max_step: float = math.inf) -> Cable:
+        """A cable pulled from the fixed ``pull_point`` (m) through ``points`` ``(k, 3)`` (m) of ``body``.
+
+        ``mode="displacement"``: ``value`` is the shortening (m); ``mode="force"``: the tension
+        (N). Bounds: tension in [min_force >= 0, max_force] N, shortening in
+        [min_displacement, max_displacement] m, at most ``max_step`` m of change per step.
+        """
+        self._own(body, "add_cable")
+        self._new_row_name(name)
+        cable = Cable(name, mode, value, min_force, max_force, min_displacement, max_displacement, max_step,
+                      body=body, points=points, pull_point=pull_point)
+        self.cables.append(cable)
+        return cable
+
+    def add_cavity(self, name: str, body: Body, region: Region | None = None, triangles=None,
+                   mode: str = "pressure", value: float | Callable[[float], float] = 0.0, min_pressure: float = 0.0,
+                   max_pressure: float = math.inf, min_volume_growth: float = -math.inf,
+                   max_volume_growth: float = math.inf, max_step: float = math.inf,
+                   symmetry_planes: list | None = None) -> Cavity:
+        """A pneumatic cavity: the closed void of ``body`` whose boundary lies in ``region``.
+
+        ``mode="pressure"``: ``value`` is the pressure (Pa); ``mode="volume"``: the volume
+        growth (m^3). ``min_pressure < 0`` allows vacuum. In a model cut by symmetry planes
+        (``ws.Plane`` list) the cavity surface may be open along them.
+        """
+        self._own(body, "add_cavity")
+        self._new_row_name(name)
+        modes = {"pressure": "force", "volume": "displacement"}
+        if mode not in modes:
+            raise SceneError(f"cavity '{name}': mode must be 'pressure' or 'volume', got {mode!r}")
+        if (region is None) == (triangles is None):
+            raise SceneError(f"cavity '{name}': give either a region or triangles")
+        cavity = Cavity(name, modes[mode], value, min_pressure, max_pressure, min_volume_growth, max_volume_growth,
+                        max_step, body=body, region=region, triangles=triangles, symmetry_planes=symmetry_planes)
+        cavity.surface()  # validates now: closed and oriented
+        self.cavities.append(cavity)
+        return cavity
+
+    def add_effector(self, name: str, point: Vec3, target=None, axes: str = "xyz", weight: float = 1.0) -> Effector:
+        """A point (m, rest configuration) to place: ``target`` is a 3-vector, a function of time
+        ``t -> 3-vector`` or None (its rest position); ``axes`` selects the controlled axes."""
+        self._new_row_name(name)
+        eff = Effector(name, point, target, axes, weight)
+        self.effectors.append(eff)
+        return eff
+
+    @property
+    def actuators(self) -> list:
+        """Cables then cavities: the order of the actuator rows."""
+        return [*self.cables, *self.cavities]
+
+    def _new_row_name(self, name: str) -> None:
+        if any(r.name == name for r in [*self.cables, *self.cavities, *self.effectors]):
+            raise SceneError(f"scene '{self.name}': an actuator or effector named '{name}' exists already")
 
     def set_damping(self, rayleigh_mass: float = 0.0, rayleigh_stiffness: float = 0.0) -> None:
         """Rayleigh damping ``D = rayleigh_mass M + rayleigh_stiffness K`` (1/s and s)."""

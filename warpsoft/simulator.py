@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 import warnings
 from contextlib import contextmanager
@@ -10,12 +11,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from warpsoft.kernels import fem, integrate, linalg, mapping
+from warpsoft.kernels import fem, integrate, linalg, mapping, rows
 
+from .constraints import ConstraintSet
+from .control import Control
 from .errors import SceneError, SimulationError
 from .model import Model, State
+from .resolve import RowInputs, kinematic_jacobian, projected_gauss_seidel
 from .scene import Scene
-from .solvers import BlockJacobiCG, SparseDirect, SystemOperator
+from .solvers import BlockJacobi, BlockJacobiCG, SparseDirect, SystemOperator
 
 
 class ConvergenceWarning(UserWarning):
@@ -34,6 +38,13 @@ class StepStats:
     stages: dict[str, float] = field(default_factory=dict)
     total: float = 0.0
     warnings: list[str] = field(default_factory=list)
+    compliance_iterations: int = 0
+    resolve_iterations: int = 0
+    resolve_residual: float = 0.0
+    actuator_delta: dict[str, float] = field(default_factory=dict)
+    actuator_lambda: dict[str, float] = field(default_factory=dict)
+    effectors: dict[str, np.ndarray] = field(default_factory=dict)
+    targets: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 class Simulator:
@@ -71,9 +82,12 @@ class Simulator:
         self.f_ext = wp.zeros(n, dtype=wp.vec3d, device=d)
         if m.f_const is not None:
             wp.copy(self.f_ext, m.f_const)
-        self.b = wp.zeros(n, dtype=wp.vec3d, device=d)
+        self.b = wp.zeros((1, n), dtype=wp.vec3d, device=d)
+        self.dx_free = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # the free solve's unknown (warm start)
         self.dx = wp.zeros(n, dtype=wp.vec3d, device=d)
         self._flag = wp.zeros(1, dtype=wp.int32, device=d)
+        self._largest_step = wp.zeros(1, dtype=wp.float64, device=d)
+        self._size = float(np.linalg.norm(np.ptp(m.rest_np, axis=0)))  # model size (m) for step-size warnings
 
         scene_ = m.scene
         h = m.dt
@@ -85,16 +99,53 @@ class Simulator:
         self.operator = SystemOperator(m, self.rot)
         self.operator.set_scales(self.mass_scale, self.stiffness_scale)
         if solver == "cg":
-            self.cg = BlockJacobiCG(self.operator, tolerance, max_iterations)
+            self.preconditioner = BlockJacobi(self.operator)
+            self.cg = BlockJacobiCG(self.operator, self.preconditioner, 1, tolerance, max_iterations)
         else:
             self.direct = SparseDirect(m)
 
+        # constraint rows exist only when the scene declares actuators or effectors
+        self.constraints = None
+        self.constraint_scale = 1.0 if m.static else h * h  # dx = dx_free + s X lambda, W = s H X
+        self.last_W = None
+        if scene_.actuators or scene_.effectors:
+            self.constraints = ConstraintSet(m, scene_.cables, scene_.cavities, scene_.effectors)
+            self._q_free = wp.zeros(n, dtype=wp.vec3d, device=d)
+            self._v_scratch = wp.zeros(n, dtype=wp.vec3d, device=d)
+            na = self.constraints.num_actuators
+            self.lam = np.zeros(na)
+            self.actuator_delta = np.zeros(na)  # delta after the last step (rest: 0)
+            if na:
+                self.columns = wp.zeros((na, n), dtype=wp.vec3d, device=d)
+                self.X = wp.zeros((na, n), dtype=wp.vec3d, device=d)  # A X = H_a^T, warm-started
+                if solver == "cg":
+                    self.compliance_cg = BlockJacobiCG(self.operator, self.preconditioner, na, tolerance,
+                                                       max_iterations)
+
     # ---- the step ------------------------------------------------------------------------
-    def step(self) -> StepStats:
-        """Advance the state by one step; on a non-finite result raise and keep the old state."""
+    def step(self, control: Control | None = None) -> StepStats:
+        """Advance the state by one step; on a non-finite result raise and keep the old state.
+
+        ``control`` overrides actuator inputs for this step (by actuator name).
+        """
+        try:
+            return self._step(control)
+        except SceneError:
+            raise
+        except SimulationError:
+            self._forget_warm_starts()
+            raise
+        except (RuntimeError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            self._forget_warm_starts()
+            raise SimulationError(f"step {self.step_index + 1} (t = {self.time + self.model.dt:g} s) failed in a "
+                                  f"solver: {type(exc).__name__}: {exc}; the state before the step is kept") from exc
+
+    def _step(self, control: Control | None) -> StepStats:
         m, d = self.model, self.model.device
+        cs = self.constraints
         stats = StepStats(self.step_index + 1, self.time + m.dt)
         start = time.perf_counter()
+        inputs = self._row_inputs(stats.time, control) if cs is not None and cs.num_actuators else None
 
         with self._stage(stats, "linearize"):  # rotations, internal forces, preconditioner
             self.f_int.zero_()
@@ -102,7 +153,7 @@ class Simulator:
                       inputs=[self.state.q, m.tets, m.dm_inv, m.volume, m.mu, m.lam],
                       outputs=[self.rot, self.f_int], device=d)
             if self.solver_name == "cg":
-                self.cg.update_preconditioner()
+                self.preconditioner.update()
             else:
                 self.direct.factorize(self.rot, self.mass_scale, self.stiffness_scale)
 
@@ -114,29 +165,59 @@ class Simulator:
         with self._stage(stats, "free_solve"):  # A dx = b
             if m.static:
                 wp.launch(integrate.rhs_static, m.num_nodes, inputs=[self.f_int, self.f_ext, m.mask],
-                          outputs=[self.b], device=d)
+                          outputs=[self.b[0]], device=d)
             else:
                 wp.launch(integrate.rhs_dynamic, m.num_nodes,
                           inputs=[self.state.v, m.mass, self.f_int, self.f_ext, m.dt, m.mask],
-                          outputs=[self.b], device=d)
-            if self.solver_name == "cg":
-                if not self.warm_start:
-                    self.dx.zero_()
-                res = self.cg.solve(self.b, self.dx)
-                stats.cg_iterations, stats.cg_residual, stats.converged = res.iterations, res.residual, res.converged
-                if not res.converged:
-                    msg = (f"step {stats.index}: CG stopped after {res.iterations} iterations at relative residual "
-                           f"{res.residual:.3e} > tolerance {self.cg.tolerance:.1e}")
-                    stats.warnings.append(msg)
-                    warnings.warn(msg, ConvergenceWarning, stacklevel=2)
-            else:
-                self.dx.assign(self.direct.solve(self.b.numpy()))
+                          outputs=[self.b[0]], device=d)
+            self._solve(self.b, self.dx_free, self.cg if self.solver_name == "cg" else None, stats, "free solve")
+        dx = self.dx_free[0]
 
-        with self._stage(stats, "correct"):  # q += dx, v = dx / h
+        if cs is not None:
+            with self._stage(stats, "compliance"):  # delta at the free configuration; A X = H^T, W = s H X
+                wp.launch(integrate.advance, m.num_nodes, inputs=[self.state.q, dx, 0.0],
+                          outputs=[self._q_free, self._v_scratch], device=d)
+                targets = cs.set_time(stats.time)
+                cs.evaluate(self._q_free)
+                delta_free = cs.delta.numpy()
+                # H at the linearization point q, like A. Taken at the free configuration, a follower
+                # load (a pressure) is applied where the body would be without it, and a pressurised
+                # body gains energy step after step (seen on the pneunet: a growing oscillation).
+                cs.evaluate(self.state.q)
+                if cs.num_actuators:
+                    cs.actuator_columns(self.columns)
+                    cg = self.compliance_cg if self.solver_name == "cg" else None
+                    stats.compliance_iterations = self._solve(self.columns, self.X, cg, stats, "compliance solve")
+                    self.last_W = cs.compliance(self.X, self.constraint_scale)
+            if cs.num_actuators:
+                with self._stage(stats, "resolve"):  # lambda from the direct model
+                    na = cs.num_actuators
+                    res = projected_gauss_seidel(self.last_W[:na], delta_free[:na], inputs, self.lam)
+                    stats.resolve_iterations, stats.resolve_residual = res.iterations, res.residual
+                    if not res.converged:
+                        stats.warnings.append(f"step {stats.index}: Gauss-Seidel stopped after {res.iterations} "
+                                              f"sweeps, last change {res.residual:.3e}")
+                    self.lam = res.lam
+
+        with self._stage(stats, "correct"):  # dx = dx_free + s X lambda; q += dx, v = dx / h
+            if cs is not None and cs.num_actuators:
+                wp.launch(rows.correct_with_columns, m.num_nodes,
+                          inputs=[dx, self.X, wp.array(self.lam, dtype=wp.float64, device=d), self.constraint_scale],
+                          outputs=[self.dx], device=d)
+                dx = self.dx
             inv_h = 0.0 if m.static else 1.0 / m.dt
-            wp.launch(integrate.advance, m.num_nodes, inputs=[self.state.q, self.dx, inv_h],
+            wp.launch(integrate.advance, m.num_nodes, inputs=[self.state.q, dx, inv_h],
                       outputs=[self._next.q, self._next.v], device=d)
-            self._check_finite(stats)
+            self._check_health(stats, dx)
+            if cs is not None:  # rows at the new state: what the report records
+                cs.evaluate(self._next.q)
+                self.actuator_delta = cs.delta.numpy()[: cs.num_actuators].copy()
+                stats.actuator_delta = {a.name: float(v) for a, v in zip(cs.actuators, self.actuator_delta,
+                                                                              strict=True)}
+                stats.actuator_lambda = {a.name: float(v) for a, v in zip(cs.actuators, self.lam, strict=True)}
+                stats.effectors = cs.effector_positions()
+                if targets is not None:
+                    stats.targets = {e.name: t for e, t in zip(cs.effectors, targets, strict=True)}
 
         self.state, self._next = self._next, self.state
         self.time, self.step_index = stats.time, stats.index
@@ -144,6 +225,56 @@ class Simulator:
         return stats
 
     # ---- helpers -------------------------------------------------------------------------
+    def _solve(self, b: wp.array, x: wp.array, cg: BlockJacobiCG | None, stats: StepStats, what: str) -> int:
+        """``A x = b`` for the columns of ``b`` by CG (warm start ``x``) or the direct factorization."""
+        if cg is None:
+            x.assign(self.direct.solve(b.numpy()))
+            return 0
+        if not self.warm_start:
+            x.zero_()
+        res = cg.solve(b, x)
+        if not math.isfinite(res.residual):
+            raise SimulationError(f"step {stats.index} (t = {stats.time:g} s): the {what} met non-finite values "
+                                  "(NaN or inf in the state, loads or rows); the state before the step is kept")
+        if what == "free solve":
+            stats.cg_iterations, stats.cg_residual = res.iterations, res.residual
+        stats.converged = stats.converged and res.converged
+        if not res.converged:
+            msg = (f"step {stats.index}: CG ({what}) stopped after {res.iterations} iterations at relative residual "
+                   f"{res.residual:.3e} > tolerance {cg.tolerance:.1e}")
+            stats.warnings.append(msg)
+            warnings.warn(msg, ConvergenceWarning, stacklevel=3)
+        return res.iterations
+
+    def _row_inputs(self, t: float, control: Control | None) -> RowInputs:
+        acts = self.constraints.actuators
+        given = (control.inputs if control is not None else {})
+        unknown = set(given) - {a.name for a in acts}
+        if unknown:
+            raise SceneError(f"control: no actuator named {', '.join(sorted(unknown))}")
+        value = np.array([float(given[a.name]) if a.name in given else a.input_at(t) for a in acts])
+        if not np.all(np.isfinite(value)):
+            bad = acts[int(np.argmin(np.isfinite(value)))]
+            raise SceneError(f"control: input of {bad.kind} '{bad.name}' must be finite, got {given.get(bad.name)}")
+        step = np.array([a.max_step for a in acts])
+        lo_step, hi_step = self.actuator_delta - step, self.actuator_delta + step
+        return RowInputs(
+            force_mode=np.array([a.mode == "force" for a in acts]),
+            value=value,
+            lo=np.array([a.min_force for a in acts]),
+            hi=np.array([a.max_force for a in acts]),
+            dmin=np.clip([a.min_displacement for a in acts], lo_step, hi_step),
+            dmax=np.clip([a.max_displacement for a in acts], lo_step, hi_step),
+        )
+
+    def kinematic_jacobian(self) -> np.ndarray:
+        """``W_ea W_aa^-1`` of the last step: effector-axis motion (m) per unit actuator
+        displacement, ``(effector rows, actuators)``."""
+        cs = self.constraints
+        if cs is None or not cs.num_actuators or not cs.effectors or self.last_W is None:
+            raise SceneError("kinematic_jacobian: needs actuators, effectors and one step")
+        return kinematic_jacobian(self.last_W[cs.effector_row_slice], self.last_W[: cs.num_actuators])
+
     @contextmanager
     def _stage(self, stats: StepStats, name: str):
         sync = self.timing and self.model.device.is_cuda
@@ -155,13 +286,24 @@ class Simulator:
             wp.synchronize_device(self.model.device)
         stats.stages[name] = stats.stages.get(name, 0.0) + time.perf_counter() - t0
 
-    def _check_finite(self, stats: StepStats) -> None:
+    def _forget_warm_starts(self) -> None:
+        """A poisoned warm start would spoil the next attempt."""
+        self.dx_free.zero_()
+        if self.constraints is not None and self.constraints.num_actuators:
+            self.X.zero_()
+
+    def _check_health(self, stats: StepStats, dx: wp.array) -> None:
         self._flag.zero_()
-        wp.launch(linalg.count_nonfinite, self.model.num_nodes, inputs=[self._next.q], outputs=[self._flag],
-                  device=self.model.device)
+        self._largest_step.zero_()
+        wp.launch(linalg.step_health, self.model.num_nodes, inputs=[self._next.q, dx],
+                  outputs=[self._flag, self._largest_step], device=self.model.device)
         bad = int(self._flag.numpy()[0])
+        largest = float(np.sqrt(self._largest_step.numpy()[0]))
+        if largest > self._size:
+            stats.warnings.append(f"step {stats.index}: a node moved {largest:.3g} m in one step, more than the "
+                                  f"model's size {self._size:.3g} m: the simulation is likely unstable")
         if bad:
-            self.dx.zero_()  # a poisoned warm start would spoil the next attempt
+            self._forget_warm_starts()
             raise SimulationError(
                 f"step {stats.index} (t = {stats.time:g} s): {bad} node(s) got non-finite positions "
                 f"(CG {stats.cg_iterations} iterations, residual {stats.cg_residual:.3e}); "

@@ -1,7 +1,8 @@
-"""Block-Jacobi preconditioned conjugate gradient on ``A = mass_scale M + stiffness_scale K``.
+"""Batched block-Jacobi preconditioned conjugate gradient on ``A = mass_scale M + stiffness_scale K``.
 
 Matrix-free: ``K`` is applied element by element from the rotations of the last
-linearization. Fixed DOFs are projected out (the unknown stays 0 there).
+linearization, for all right-hand sides at once. Fixed DOFs are projected out (the
+unknowns stay 0 there).
 """
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 import warp as wp
 
 from warpsoft.kernels import fem, linalg
@@ -17,9 +19,10 @@ from ..model import Model
 
 
 class SystemOperator:
-    """``y = mass_scale M x + stiffness_scale K(rot) x`` for the model's elements.
+    """``y[c] = mass_scale M x[c] + stiffness_scale K(rot) x[c]`` for the model's elements.
 
-    ``rot`` (m mat33d) holds the element rotations of the current linearization.
+    ``rot`` (m mat33d) holds the element rotations of the current linearization;
+    ``x`` and ``y`` are ``(k, n)`` arrays of vec3d.
     """
 
     def __init__(self, model: Model, rot: wp.array):
@@ -35,7 +38,7 @@ class SystemOperator:
     def apply(self, x: wp.array, y: wp.array) -> None:
         m = self.model
         if self.mass_scale != 0.0:
-            wp.launch(linalg.mass_product, m.num_nodes, inputs=[x, m.mass, self.mass_scale], outputs=[y],
+            wp.launch(linalg.mass_product, x.shape, inputs=[x, m.mass, self.mass_scale], outputs=[y],
                       device=m.device)
         else:
             y.zero_()
@@ -44,9 +47,30 @@ class SystemOperator:
                   outputs=[y], device=m.device)
 
 
+class BlockJacobi:
+    """Inverse 3x3 diagonal blocks of ``A``, rebuilt at each linearization."""
+
+    def __init__(self, operator: SystemOperator):
+        m = operator.model
+        self.op = operator
+        self.kdiag = wp.zeros(m.num_nodes, dtype=wp.mat33d, device=m.device)
+        self.inverse = wp.zeros(m.num_nodes, dtype=wp.mat33d, device=m.device)
+        self._mass = m.mass if m.mass is not None else wp.zeros(m.num_nodes, dtype=wp.float64, device=m.device)
+
+    def update(self) -> None:
+        m, op = self.op.model, self.op
+        self.kdiag.zero_()
+        wp.launch(fem.stiffness_diagonal, m.num_elements, inputs=[m.tets, m.dm_inv, m.volume, m.mu, m.lam, op.rot],
+                  outputs=[self.kdiag], device=m.device)
+        wp.launch(linalg.block_jacobi_inverse, m.num_nodes,
+                  inputs=[self.kdiag, self._mass, op.mass_scale, op.stiffness_scale, m.mask],
+                  outputs=[self.inverse], device=m.device)
+
+
 @dataclass
 class CGResult:
-    """Outcome of one solve: iterations, relative residual ``|r| / |b|``, convergence."""
+    """Outcome of one batched solve: iterations (shared by the columns), the largest relative
+    residual ``|r| / |b|`` over the columns, and whether every column converged."""
 
     iterations: int
     residual: float
@@ -54,75 +78,57 @@ class CGResult:
 
 
 class BlockJacobiCG:
-    """PCG with a 3x3 block-Jacobi preconditioner rebuilt at each linearization.
+    """PCG on ``columns`` right-hand sides at once.
 
     Args:
         operator: the system (its model gives sizes, device, mask, mass).
-        tolerance: relative residual ``|r| / |b|`` to reach.
+        preconditioner: block Jacobi of the same system (shared between solvers).
+        columns: number of right-hand sides ``k``.
+        tolerance: relative residual ``|r| / |b|`` each column must reach.
         max_iterations: cap; reaching it is reported, not hidden.
-        check_every: read the residual back to the host every this many iterations.
+        check_every: read the residuals back to the host every this many iterations.
     """
 
-    def __init__(self, operator: SystemOperator, tolerance: float = 1e-6, max_iterations: int = 2000,
-                 check_every: int = 1):
-        self.op = operator
+    def __init__(self, operator: SystemOperator, preconditioner: BlockJacobi, columns: int = 1,
+                 tolerance: float = 1e-6, max_iterations: int = 2000, check_every: int = 1):
+        self.op, self.precond = operator, preconditioner
         self.tolerance, self.max_iterations, self.check_every = float(tolerance), int(max_iterations), int(check_every)
         m = operator.model
-        n, d = m.num_nodes, m.device
-        self.r, self.z, self.p, self.ap = (wp.zeros(n, dtype=wp.vec3d, device=d) for _ in range(4))
-        self.kdiag = wp.zeros(n, dtype=wp.mat33d, device=d)
-        self.precond = wp.zeros(n, dtype=wp.mat33d, device=d)
-        self.scal = wp.zeros(linalg.NUM_SCALARS, dtype=wp.float64, device=d)
-        self._zero_mass = None
+        shape = (int(columns), m.num_nodes)
+        self.r, self.z, self.p, self.ap = (wp.zeros(shape, dtype=wp.vec3d, device=m.device) for _ in range(4))
+        self.scal = wp.zeros((shape[0], linalg.NUM_SCALARS), dtype=wp.float64, device=m.device)
 
-    def update_preconditioner(self) -> None:
-        """Rebuild the block diagonal of ``A`` from the operator's current rotations."""
-        m, op = self.op.model, self.op
-        self.kdiag.zero_()
-        wp.launch(fem.stiffness_diagonal, m.num_elements,
-                  inputs=[m.tets, m.dm_inv, m.volume, m.mu, m.lam, op.rot], outputs=[self.kdiag], device=m.device)
-        mass = m.mass
-        if mass is None:
-            if self._zero_mass is None:
-                self._zero_mass = wp.zeros(m.num_nodes, dtype=wp.float64, device=m.device)
-            mass = self._zero_mass
-        wp.launch(linalg.block_jacobi_inverse, m.num_nodes,
-                  inputs=[self.kdiag, mass, op.mass_scale, op.stiffness_scale, m.mask], outputs=[self.precond],
-                  device=m.device)
+    def _relative(self) -> float:
+        """Largest relative residual over the columns; NaN if any ``b`` or ``r`` is not finite."""
+        s = self.scal.numpy()
+        b2, r2 = s[:, linalg.B2], s[:, linalg.R2_LAST]
+        if not (np.all(np.isfinite(b2)) and np.all(np.isfinite(r2))):
+            return math.nan
+        b = np.sqrt(b2)
+        rel = np.divide(np.sqrt(np.maximum(r2, 0.0)), b, out=np.zeros_like(b), where=b > 0)
+        return float(rel.max())
 
     def solve(self, b: wp.array, x: wp.array) -> CGResult:
-        """Solve ``A x = b`` in place; ``x`` holds the warm start on entry (fixed DOFs are zeroed)."""
-        m, n, d = self.op.model, self.op.model.num_nodes, self.op.model.device
-        wp.launch(_project, n, inputs=[m.mask], outputs=[x], device=d)
+        """Solve ``A x[c] = b[c]`` in place for every column (``(k, n)`` arrays); ``x`` holds the
+        warm start on entry (its fixed DOFs are zeroed)."""
+        m, d, shape = self.op.model, self.op.model.device, self.r.shape
+        pre = self.precond.inverse
+        wp.launch(linalg.project, shape, inputs=[m.mask], outputs=[x], device=d)
         self.op.apply(x, self.ap)
         self.scal.zero_()
-        wp.launch(linalg.cg_start, n, inputs=[b, self.ap, m.mask, self.precond],
-                  outputs=[self.r, self.z, self.p, self.scal], device=d)
-        s = self.scal.numpy()
-        b_norm = math.sqrt(s[linalg.B2])
-        if b_norm == 0.0:
-            x.zero_()
-            return CGResult(0, 0.0, True)
-        rel = math.sqrt(s[linalg.R2_LAST]) / b_norm
-        if rel <= self.tolerance:
-            return CGResult(0, rel, True)
+        wp.launch(linalg.cg_start, shape, inputs=[b, self.ap, m.mask, pre], outputs=[self.r, self.z, self.p, self.scal],
+                  device=d)
+        wp.launch(linalg.cg_clear_zero_columns, shape, inputs=[self.scal], outputs=[x, self.p], device=d)
+        rel = self._relative()
         it = 0
-        while it < self.max_iterations:
+        while rel > self.tolerance and math.isfinite(rel) and it < self.max_iterations:
             self.op.apply(self.p, self.ap)
-            wp.launch(linalg.cg_curvature, n, inputs=[self.p, self.ap, m.mask], outputs=[self.scal], device=d)
-            wp.launch(linalg.cg_update, n, inputs=[x, self.r, self.z, self.p, self.ap, self.precond],
-                      outputs=[self.scal], device=d)
-            wp.launch(linalg.cg_scalars, 1, inputs=[self.scal], device=d)
+            wp.launch(linalg.cg_curvature, shape, inputs=[self.p, self.ap, m.mask], outputs=[self.scal], device=d)
+            wp.launch(linalg.cg_update, shape, inputs=[x, self.r, self.z, self.p, self.ap, pre], outputs=[self.scal],
+                      device=d)
+            wp.launch(linalg.cg_scalars, shape[0], inputs=[self.scal], device=d)
             it += 1
             if it % self.check_every == 0 or it == self.max_iterations:
-                rel = math.sqrt(max(float(self.scal.numpy()[linalg.R2_LAST]), 0.0)) / b_norm
-                if rel <= self.tolerance or not math.isfinite(rel):
-                    break
-            wp.launch(linalg.cg_direction, n, inputs=[self.z, self.p], outputs=[self.scal], device=d)
+                rel = self._relative()
+            wp.launch(linalg.cg_direction, shape, inputs=[self.z, self.p], outputs=[self.scal], device=d)
         return CGResult(it, rel, bool(rel <= self.tolerance))
-
-
-@wp.kernel
-def _project(mask: wp.array(dtype=wp.vec3d), x: wp.array(dtype=wp.vec3d)):
-    i = wp.tid()
-    x[i] = wp.cw_mul(mask[i], x[i])

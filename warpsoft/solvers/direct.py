@@ -58,8 +58,8 @@ class SparseDirect:
         self._lu = spla.splu(self.matrix(rot, mass_scale, stiffness_scale))
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """Solve for a right-hand side ``(n, 3)`` (or ``(n, 3, k)``); fixed DOFs get 0."""
-        flat = b.reshape(self.model.num_dofs, -1)
+        """Solve for right-hand sides ``(k, n, 3)``; fixed DOFs get 0."""
+        flat = b.reshape(b.shape[0], self.model.num_dofs).T
         x = np.zeros_like(flat)
         x[self.free] = self._lu.solve(np.ascontiguousarray(flat[self.free]))
-        return x.reshape(b.shape)
+        return np.ascontiguousarray(x.T).reshape(b.shape)

@@ -1,0 +1,62 @@
+"""Generic constraint-row kernels. Every row's ``H = d delta / dq`` is stored as sparse
+entries ``(h_row[k], h_node[k], h_coef[k])``: row id, node id, 3-vector coefficient."""
+
+import warp as wp
+
+
+@wp.kernel
+def rows_to_columns(
+    h_row: wp.array(dtype=wp.int32),
+    h_node: wp.array(dtype=wp.int32),
+    h_coef: wp.array(dtype=wp.vec3d),
+    column_of_row: wp.array(dtype=wp.int32),
+    columns: wp.array2d(dtype=wp.vec3d),
+):
+    """``columns[c] += H^T e_row`` for the rows that own a column (``column_of_row >= 0``)."""
+    k = wp.tid()
+    c = column_of_row[h_row[k]]
+    if c >= 0:
+        wp.atomic_add(columns, c, h_node[k], h_coef[k])
+
+
+@wp.kernel
+def rows_times_columns(
+    h_row: wp.array(dtype=wp.int32),
+    h_node: wp.array(dtype=wp.int32),
+    h_coef: wp.array(dtype=wp.vec3d),
+    x: wp.array2d(dtype=wp.vec3d),
+    scale: wp.float64,
+    w: wp.array2d(dtype=wp.float64),
+):
+    """``w[row, c] += scale * H[row] . x[c]`` (launched over entries x columns): ``W = s H X``."""
+    k, c = wp.tid()
+    wp.atomic_add(w, h_row[k], c, scale * wp.dot(h_coef[k], x[c, h_node[k]]))
+
+
+@wp.kernel
+def correct_with_columns(
+    dx_free: wp.array(dtype=wp.vec3d),
+    x: wp.array2d(dtype=wp.vec3d),
+    lam: wp.array(dtype=wp.float64),
+    scale: wp.float64,
+    dx: wp.array(dtype=wp.vec3d),
+):
+    """``dx = dx_free + scale * sum_c lam[c] x[c]``: the correction, with no further solve."""
+    i = wp.tid()
+    d = dx_free[i]
+    for c in range(x.shape[0]):
+        d = d + (scale * lam[c]) * x[c, i]
+    dx[i] = d
+
+
+@wp.kernel
+def rows_transpose_times(
+    h_row: wp.array(dtype=wp.int32),
+    h_node: wp.array(dtype=wp.int32),
+    h_coef: wp.array(dtype=wp.vec3d),
+    lam: wp.array(dtype=wp.float64),
+    force: wp.array(dtype=wp.vec3d),
+):
+    """``force += H^T lam`` (N): the rows' forces on the nodes."""
+    k = wp.tid()
+    wp.atomic_add(force, h_node[k], lam[h_row[k]] * h_coef[k])

@@ -1,0 +1,88 @@
+"""Effector: a point of a body to place, on all axes or a subset; one row per axis."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from warpsoft.kernels import mapping
+
+from ..errors import SceneError
+
+
+@dataclass
+class Effector:
+    """A material point (m, rest configuration) and its target: a 3-vector, a function of
+    time ``t -> 3-vector``, or None (then the rest position: ``delta`` is the displacement).
+    ``axes``: which of "xyz" are controlled; ``weight``: its share in the inverse model."""
+
+    name: str
+    point: np.ndarray
+    target: np.ndarray | Callable | None = None
+    axes: str = "xyz"
+    weight: float = 1.0
+
+    def __post_init__(self) -> None:
+        p = np.asarray(self.point, dtype=float)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise SceneError(f"effector '{self.name}': point must be 3 finite numbers, got {self.point!r}")
+        self.point = p
+        if not self.axes or any(a not in "xyz" for a in self.axes) or len(set(self.axes)) != len(self.axes):
+            raise SceneError(f"effector '{self.name}': axes must be a subset of 'xyz', got {self.axes!r}")
+        if not (isinstance(self.weight, (int, float)) and np.isfinite(self.weight) and self.weight > 0):
+            raise SceneError(f"effector '{self.name}': weight must be a finite number > 0, got {self.weight!r}")
+        if self.target is not None and not callable(self.target):
+            self.target = self.target_at(0.0)
+
+    def target_at(self, t: float) -> np.ndarray:
+        """The target (m) at time ``t`` (s); NaN or a wrong shape is an error naming the effector."""
+        if self.target is None:
+            return self.point
+        v = self.target(t) if callable(self.target) else self.target
+        try:
+            v = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            v = np.array([np.nan])
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise SceneError(f"effector '{self.name}': target at t = {t:g} s must be 3 finite numbers, got {v!r}")
+        return v
+
+    @property
+    def axis_ids(self) -> list[int]:
+        return ["xyz".index(a) for a in self.axes]
+
+
+class EffectorRows:
+    """Device side of all effectors: one thread per controlled axis."""
+
+    def __init__(self, effectors: list[Effector], first_row: int, point_offset: int, device):
+        point, axis, rows = [], [], []
+        r = first_row
+        for k, eff in enumerate(effectors):
+            for a in eff.axis_ids:
+                point.append(point_offset + k)
+                axis.append(a)
+                rows.append(r)
+                r += 1
+        self.effectors, self.rows = effectors, rows
+        self.num_entries = 4 * len(rows)
+        self.point = wp.array(np.array(point, dtype=np.int32), dtype=wp.int32, device=device)
+        self.axis = wp.array(np.array(axis, dtype=np.int32), dtype=wp.int32, device=device)
+        self.axis_np = np.array(axis)
+        self.row = wp.array(np.array(rows, dtype=np.int32), dtype=wp.int32, device=device)
+        self.target = wp.zeros(len(rows), dtype=wp.float64, device=device)
+
+    def set_time(self, t: float) -> np.ndarray:
+        """Upload the targets at time ``t``; returns them as ``(e, 3)``."""
+        targets = np.array([eff.target_at(t) for eff in self.effectors])
+        per_row = np.concatenate([targets[k, eff.axis_ids] for k, eff in enumerate(self.effectors)])
+        self.target.assign(per_row)
+        return targets
+
+    def evaluate(self, points, point_nodes, point_weights, entry_offset, delta, h_row, h_node, h_coef):
+        wp.launch(mapping.effector_rows, len(self.rows),
+                  inputs=[points, point_nodes, point_weights, self.point, self.axis, self.target, self.row,
+                          entry_offset], outputs=[delta, h_row, h_node, h_coef], device=delta.device)
