@@ -1,14 +1,17 @@
-"""A cable-finger-like silicone body (after SoftRobots' finger): clamped at its base, sagging
-under gravity. The finger runs along -x from its base face at x = 0; z is up."""
+"""A cable finger (after SoftRobots' finger): a notched silicone finger clamped at its base,
+under gravity, curled by a cable running along it under the notches. The finger runs along
+-x from its base face at x = 0; z is up."""
 
 import warpsoft as ws
 
 
 def build(length=0.085, height=0.02, width=0.015, notches=3, notch_depth=0.006, notch_width=0.004,
           young_modulus=600e3, poisson_ratio=0.45, total_mass=0.075, gravity=9.81, dt=0.01,
-          rayleigh_mass=0.1, rayleigh_stiffness=0.1, mesh_size=0.004):
-    """Finger ``length`` (m) along -x, ``height`` (z) x ``width`` (y), with ``notches`` cut into
-    its top between phalanges; silicone E 600 kPa, nu 0.45, 75 g (SoftRobots' values)."""
+          rayleigh_mass=0.1, rayleigh_stiffness=0.1, mesh_size=0.004, cable_displacement=0.012, ramp_time=0.5,
+          max_cable_displacement=0.03):
+    """Finger ``length`` (m) along -x, ``height`` (z) x ``width`` (y), ``notches`` cut into its
+    top; silicone E 600 kPa, nu 0.45, 75 g (SoftRobots' values). The cable shortens linearly
+    to ``cable_displacement`` (m) over ``ramp_time`` (s), within ``max_cable_displacement``."""
     shape = ws.shapes.Box((-length, 0.0, 0.0), (length, width, height))
     pitch = length / (notches + 1)
     for k in range(1, notches + 1):
@@ -20,5 +23,11 @@ def build(length=0.085, height=0.02, width=0.015, notches=3, notch_depth=0.006, 
                             ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
     scene.fix(finger, ws.Box((-0.1 * length, -1.0, -1.0), (0.0, 1.0, 1.0)))  # base clamp
+    z = height - notch_depth - 0.25 * (height - notch_depth)  # under the notches, near the top
+    path = [(-length * k / 10, width / 2, z) for k in range(1, 10)] + [(-length + 0.003, width / 2, z)]
+    scene.add_cable("cable", finger, points=path, pull_point=(0.01, width / 2, z), mode="displacement",
+                    value=lambda t: cable_displacement * min(t / ramp_time, 1.0),
+                    max_displacement=max_cable_displacement)
+    scene.add_effector("fingertip", (-length, width / 2, height / 2))
     scene.add_probe("tip", (-length, width / 2, height / 2))
     return scene

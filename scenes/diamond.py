@@ -1,0 +1,41 @@
+"""The Diamond parallel robot (after SoftRobots.Inverse): one silicone piece, four legs from a
+fixed base out to four corners and four arms up to a top platform; four cables pull the
+corners toward the base. z is up; the effector is the top of the platform."""
+
+import math
+
+import numpy as np
+
+import warpsoft as ws
+
+
+def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011, young_modulus=180e3,
+          poisson_ratio=0.45, total_mass=0.5, gravity=9.81, dt=0.02, rayleigh_mass=0.1, rayleigh_stiffness=0.1,
+          mesh_size=0.01, cable_displacements=(0.0, 0.0, 0.0, 0.0), ramp_time=1.0, max_cable_displacement=0.02):
+    """Direct mode: each cable i shortens linearly to ``cable_displacements[i]`` (m) over
+    ``ramp_time`` (s); cables stay within [0, ``max_cable_displacement``] and tension >= 0."""
+    if len(cable_displacements) != 4:
+        raise ws.SceneError(f"diamond: cable_displacements must have 4 values, got {cable_displacements!r}")
+    base_top = 0.01
+    hub = np.array([0.0, 0.0, 0.0])
+    top = np.array([0.0, 0.0, top_height - leg_radius])
+    corners = [np.array([radius * math.cos(a), radius * math.sin(a), corner_height])
+               for a in np.radians([90.0, 180.0, 270.0, 0.0])]
+    shape = ws.Cylinder((0.0, 0.0, -0.03), (0.0, 0.0, 0.03 + base_top), 0.015) + ws.Ball(tuple(top), 1.3 * leg_radius)
+    for c in corners:
+        shape = shape + ws.Ball(tuple(c), 1.3 * leg_radius)
+        shape = shape + ws.Cylinder(tuple(hub), tuple(c - hub), leg_radius)
+        shape = shape + ws.Cylinder(tuple(c), tuple(top - c), leg_radius)
+    scene = ws.Scene("diamond", gravity=(0.0, 0.0, -gravity), dt=dt, steps=100)
+    body = scene.add_body("diamond", ws.mesh_shape(shape, mesh_size, name="diamond", curvature=0),
+                          ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
+    scene.set_damping(rayleigh_mass, rayleigh_stiffness)
+    scene.fix(body, ws.Box((-0.015, -0.015, -0.04), (0.015, 0.015, base_top)))  # SoftRobots' base box
+    for i, (c, d) in enumerate(zip(corners, cable_displacements, strict=True)):
+        pull = 0.1 * c * np.array([1.0, 1.0, 0.0]) + np.array([0.0, 0.0, 0.03])
+        scene.add_cable(f"cable{i}", body, points=[tuple(c)], pull_point=tuple(pull), mode="displacement",
+                        value=lambda t, d=d: d * min(t / ramp_time, 1.0), min_displacement=0.0,
+                        max_displacement=max_cable_displacement)
+    scene.add_effector("effector", (0.0, 0.0, top_height))
+    scene.add_probe("top", (0.0, 0.0, top_height))
+    return scene
