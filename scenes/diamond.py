@@ -11,9 +11,11 @@ import warpsoft as ws
 
 def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011, young_modulus=180e3,
           poisson_ratio=0.45, total_mass=0.5, gravity=9.81, dt=0.02, rayleigh_mass=0.1, rayleigh_stiffness=0.1,
-          mesh_size=0.01, cable_displacements=(0.0, 0.0, 0.0, 0.0), ramp_time=1.0, max_cable_displacement=0.02):
+          mesh_size=0.01, cable_displacements=(0.0, 0.0, 0.0, 0.0), ramp_time=1.0, max_cable_displacement=0.02,
+          static=False):
     """Direct mode: each cable i shortens linearly to ``cable_displacements[i]`` (m) over
-    ``ramp_time`` (s); cables stay within [0, ``max_cable_displacement``] and tension >= 0."""
+    ``ramp_time`` (s); cables stay within [0, ``max_cable_displacement``] and tension >= 0.
+    ``static=True``: quasi-static steps (no inertia, no damping)."""
     if len(cable_displacements) != 4:
         raise ws.SceneError(f"diamond: cable_displacements must have 4 values, got {cable_displacements!r}")
     base_top = 0.01
@@ -26,7 +28,7 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
         shape = shape + ws.Ball(tuple(c), 1.3 * leg_radius)
         shape = shape + ws.Cylinder(tuple(hub), tuple(c - hub), leg_radius)
         shape = shape + ws.Cylinder(tuple(c), tuple(top - c), leg_radius)
-    scene = ws.Scene("diamond", gravity=(0.0, 0.0, -gravity), dt=dt, steps=100)
+    scene = ws.Scene("diamond", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=100)
     body = scene.add_body("diamond", ws.mesh_shape(shape, mesh_size, name="diamond", curvature=0),
                           ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)

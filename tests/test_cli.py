@@ -65,3 +65,23 @@ def test_param_values_are_python_or_json_literals():
 
     p = parse_params(["target=[0,0,0.1]", "mode=inverse", "flag=true", "n=3", "d={'a': 1}"])
     assert p == {"target": [0, 0, 0.1], "mode": "inverse", "flag": True, "n": 3, "d": {"a": 1}}
+
+
+def test_report_and_usd_carry_actuators_and_effectors(tmp_path):
+    from pxr import Usd, UsdGeom
+
+    usd, rep = tmp_path / "finger.usda", tmp_path / "finger.json"
+    assert main(["run", str(ROOT / "scenes/finger.py"), "--steps", "3", "--usd", str(usd), "--report", str(rep),
+                 "--param", "mesh_size=0.006", "--quiet"]) == 0
+    d = json.loads(rep.read_text())
+    assert set(d["stages_run"]) == {"linearize", "free_solve", "compliance", "resolve", "correct"}
+    cable = d["actuators"]["cable"]
+    assert cable["kind"] == "cable" and cable["mode"] == "displacement"
+    assert len(cable["delta"]) == len(cable["lambda"]) == 3 and min(cable["lambda"]) >= 0
+    assert len(d["W"]) == 3 and len(d["W"][0]) == 1 and d["W"][0][0][0] > 0
+    assert len(d["effectors"]["fingertip"]) == 3 and "targets" not in d  # the fingertip has no target
+    stage = Usd.Stage.Open(str(usd))
+    curve = UsdGeom.BasisCurves(stage.GetPrimAtPath("/World/cables/cable"))
+    assert curve.GetPointsAttr().GetTimeSamples() == [0.0, 1.0, 2.0, 3.0]
+    assert len(curve.GetPointsAttr().Get(3.0)) == 11  # the pull point and ten path points
+    assert stage.GetPrimAtPath("/World/effectors/fingertip").IsValid()

@@ -22,8 +22,8 @@ class State:
     v: wp.array
 
     def positions(self) -> np.ndarray:
-        """Positions as a ``(n, 3)`` NumPy array (m)."""
-        return self.q.numpy()
+        """A copy of the positions as a ``(n, 3)`` NumPy array (m)."""
+        return self.q.numpy().copy()
 
     def assign(self, other: State) -> None:
         wp.copy(self.q, other.q)

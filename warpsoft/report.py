@@ -44,11 +44,32 @@ class RunReport:
         self.sim, self.scene_file, self.params = sim, scene_file, dict(params or {})
         self.steps: list[StepStats] = []
         self.points: dict[str, list] = {name: [] for name in sim.model.probe_names}
+        self.W: list = []
 
     def record(self, stats: StepStats, probes: dict[str, np.ndarray]) -> None:
         self.steps.append(stats)
         for name, p in probes.items():
             self.points[name].append(np.asarray(p).tolist())
+        cs = self.sim.constraints
+        if cs is not None and cs.num_actuators and self.sim.last_W is not None:
+            self.W.append(self.sim.last_W[: cs.num_actuators].tolist())
+
+    def _constraints(self) -> dict:
+        cs = self.sim.constraints
+        if cs is None:
+            return {}
+        actuators = {a.name: {"kind": a.kind, "mode": a.mode,
+                              "delta": [s.actuator_delta[a.name] for s in self.steps],
+                              "lambda": [s.actuator_lambda[a.name] for s in self.steps]} for a in cs.actuators}
+        effectors = {e.name: [np.asarray(s.effectors[e.name]).tolist() for s in self.steps] for e in cs.effectors}
+        out = {"actuators": actuators, "effectors": effectors,
+               "W": self.W, "W_units": "cable m/N, cavity m^3/Pa (rows and columns in actuator order)",
+               "compliance_iterations": [s.compliance_iterations for s in self.steps],
+               "resolve_iterations": [s.resolve_iterations for s in self.steps]}
+        targeted = [e.name for e in cs.effectors if e.target is not None]
+        if targeted:
+            out["targets"] = {name: [np.asarray(s.targets[name]).tolist() for s in self.steps] for name in targeted}
+        return out
 
     def to_dict(self) -> dict:
         m, sim = self.sim.model, self.sim
@@ -86,6 +107,7 @@ class RunReport:
                 "per_step": [s.total for s in self.steps],
             },
             "warnings": warnings,
+            **self._constraints(),
         })
 
     def write(self, path: str | Path) -> Path:

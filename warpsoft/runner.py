@@ -95,6 +95,7 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
 
         writer = UsdWriter(usd, sim.model)
         writer.write_frame(0, sim.state.positions(), sim.probe_positions())
+        writer.write_rows(0, sim.constraint_geometry())
     failure = None
     iterator = range(steps)
     if progress:
@@ -108,6 +109,7 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
             rep.record(stats, probes)
             if writer is not None:
                 writer.write_frame(stats.index, sim.state.positions(), probes)
+                writer.write_rows(stats.index, sim.constraint_geometry())
     except SimulationError as exc:
         failure = exc
     finally:

@@ -14,6 +14,7 @@ import warp as wp
 from warpsoft.kernels import fem, integrate, linalg, mapping, rows
 
 from .constraints import ConstraintSet
+from .constraints.cable import cable_paths
 from .control import Control
 from .errors import SceneError, SimulationError
 from .model import Model, State
@@ -110,8 +111,6 @@ class Simulator:
         self.last_W = None
         if scene_.actuators or scene_.effectors:
             self.constraints = ConstraintSet(m, scene_.cables, scene_.cavities, scene_.effectors)
-            self._q_free = wp.zeros(n, dtype=wp.vec3d, device=d)
-            self._v_scratch = wp.zeros(n, dtype=wp.vec3d, device=d)
             na = self.constraints.num_actuators
             self.lam = np.zeros(na)
             self.actuator_delta = np.zeros(na)  # delta after the last step (rest: 0)
@@ -173,31 +172,27 @@ class Simulator:
             self._solve(self.b, self.dx_free, self.cg if self.solver_name == "cg" else None, stats, "free solve")
         dx = self.dx_free[0]
 
-        if cs is not None:
-            with self._stage(stats, "compliance"):  # delta at the free configuration; A X = H^T, W = s H X
-                wp.launch(integrate.advance, m.num_nodes, inputs=[self.state.q, dx, 0.0],
-                          outputs=[self._q_free, self._v_scratch], device=d)
-                targets = cs.set_time(stats.time)
-                cs.evaluate(self._q_free)
-                delta_free = cs.delta.numpy()
-                # H at the linearization point q, like A. Taken at the free configuration, a follower
-                # load (a pressure) is applied where the body would be without it, and a pressurised
-                # body gains energy step after step (seen on the pneunet: a growing oscillation).
+        if cs is not None and cs.num_actuators:  # effectors alone need no solve: they are measured after it
+            with self._stage(stats, "compliance"):  # delta_free = delta(q) + H dx_free; A X = H^T, W = s H X
+                # Rows are linearized where A is, at q. Evaluated at the free configuration
+                # instead, H lets a follower load (a pressure) gain energy step after step (the
+                # pneunet oscillated ever wider), and delta(q_free) misses the imposed
+                # displacement by a second-order term (17 % on a bent cable beam); the linear
+                # prediction meets it exactly once the step has converged.
                 cs.evaluate(self.state.q)
-                if cs.num_actuators:
-                    cs.actuator_columns(self.columns)
-                    cg = self.compliance_cg if self.solver_name == "cg" else None
-                    stats.compliance_iterations = self._solve(self.columns, self.X, cg, stats, "compliance solve")
-                    self.last_W = cs.compliance(self.X, self.constraint_scale)
-            if cs.num_actuators:
-                with self._stage(stats, "resolve"):  # lambda from the direct model
-                    na = cs.num_actuators
-                    res = projected_gauss_seidel(self.last_W[:na], delta_free[:na], inputs, self.lam)
-                    stats.resolve_iterations, stats.resolve_residual = res.iterations, res.residual
-                    if not res.converged:
-                        stats.warnings.append(f"step {stats.index}: Gauss-Seidel stopped after {res.iterations} "
-                                              f"sweeps, last change {res.residual:.3e}")
-                    self.lam = res.lam
+                delta_free = cs.delta.numpy() + cs.linear_change(self.dx_free)
+                cs.actuator_columns(self.columns)
+                cg = self.compliance_cg if self.solver_name == "cg" else None
+                stats.compliance_iterations = self._solve(self.columns, self.X, cg, stats, "compliance solve")
+                self.last_W = cs.compliance(self.X, self.constraint_scale)
+            with self._stage(stats, "resolve"):  # lambda from the direct model
+                na = cs.num_actuators
+                res = projected_gauss_seidel(self.last_W[:na], delta_free[:na], inputs, self.lam)
+                stats.resolve_iterations, stats.resolve_residual = res.iterations, res.residual
+                if not res.converged:
+                    stats.warnings.append(f"step {stats.index}: Gauss-Seidel stopped after {res.iterations} "
+                                          f"sweeps, last change {res.residual:.3e}")
+                self.lam = res.lam
 
         with self._stage(stats, "correct"):  # dx = dx_free + s X lambda; q += dx, v = dx / h
             if cs is not None and cs.num_actuators:
@@ -210,6 +205,7 @@ class Simulator:
                       outputs=[self._next.q, self._next.v], device=d)
             self._check_health(stats, dx)
             if cs is not None:  # rows at the new state: what the report records
+                targets = cs.set_time(stats.time)
                 cs.evaluate(self._next.q)
                 self.actuator_delta = cs.delta.numpy()[: cs.num_actuators].copy()
                 stats.actuator_delta = {a.name: float(v) for a, v in zip(cs.actuators, self.actuator_delta,
@@ -217,7 +213,8 @@ class Simulator:
                 stats.actuator_lambda = {a.name: float(v) for a, v in zip(cs.actuators, self.lam, strict=True)}
                 stats.effectors = cs.effector_positions()
                 if targets is not None:
-                    stats.targets = {e.name: t for e, t in zip(cs.effectors, targets, strict=True)}
+                    stats.targets = {e.name: t for e, t in zip(cs.effectors, targets, strict=True)
+                                     if e.target is not None}
 
         self.state, self._next = self._next, self.state
         self.time, self.step_index = stats.time, stats.index
@@ -266,6 +263,20 @@ class Simulator:
             dmin=np.clip([a.min_displacement for a in acts], lo_step, hi_step),
             dmax=np.clip([a.max_displacement for a in acts], lo_step, hi_step),
         )
+
+    def constraint_geometry(self) -> dict:
+        """Rows at the current state: cable polylines (m, pull point first) by cable name,
+        effector positions and targets (m) by effector name."""
+        cs = self.constraints
+        if cs is None:
+            return {"cables": {}, "effectors": {}, "targets": {}}
+        cs.evaluate(self.state.q)
+        targets = cs.set_time(self.time)
+        paths = cable_paths(cs.cables.cables, cs.point_positions()) if cs.cables is not None else []
+        return {"cables": {c.name: p for c, p in zip(cs.cables.cables, paths, strict=True)} if paths else {},
+                "effectors": cs.effector_positions(),
+                "targets": {e.name: t for e, t in zip(cs.effectors, targets, strict=True) if e.target is not None}
+                if targets is not None else {}}
 
     def kinematic_jacobian(self) -> np.ndarray:
         """``W_ea W_aa^-1`` of the last step: effector-axis motion (m) per unit actuator

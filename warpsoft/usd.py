@@ -53,8 +53,37 @@ class UsdWriter:
             sphere.CreateRadiusAttr(0.015 * size)
             sphere.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.2, 0.4, 0.9)]))
             self.probes[name] = sphere.AddTranslateOp()
+        self.cables, self.effectors, self.targets = {}, {}, {}
+        self._marker = 0.02 * size
         self.frames = 0
         _ = Sdf  # imported for its side effect of loading the USD file formats
+
+    def _sphere(self, path: str, color) -> object:
+        Gf, Vt = self._Gf, self._Vt
+        sphere = self._UsdGeom.Sphere.Define(self.stage, path)
+        sphere.CreateRadiusAttr(self._marker)
+        sphere.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*color)]))
+        return sphere.AddTranslateOp()
+
+    def write_rows(self, frame: int, geometry: dict) -> None:
+        """Cables as linear curves through their path, effectors (green) and targets (red)
+        as spheres, at time code ``frame`` (``geometry`` from ``Simulator.constraint_geometry``)."""
+        Gf, Vt, UsdGeom = self._Gf, self._Vt, self._UsdGeom
+        for name, path in geometry["cables"].items():
+            if name not in self.cables:
+                curve = UsdGeom.BasisCurves.Define(self.stage, f"/World/cables/{_name(name)}")
+                curve.CreateTypeAttr(UsdGeom.Tokens.linear)
+                curve.CreateCurveVertexCountsAttr(Vt.IntArray([len(path)]))
+                curve.CreateWidthsAttr(Vt.FloatArray([0.3 * self._marker]))
+                curve.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.1, 0.1, 0.1)]))
+                self.cables[name] = curve
+            self.cables[name].GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(np.asarray(path, dtype=np.float32)), frame)
+        for group, store, color in (("effectors", self.effectors, (0.1, 0.7, 0.2)),
+                                    ("targets", self.targets, (0.9, 0.1, 0.1))):
+            for name, p in geometry[group].items():
+                if name not in store:
+                    store[name] = self._sphere(f"/World/{group}/{_name(name)}", color)
+                store[name].Set(Gf.Vec3d(*np.asarray(p, dtype=float).tolist()), frame)
 
     def write_frame(self, frame: int, q: np.ndarray, probes: dict[str, np.ndarray]) -> None:
         """Store positions ``q`` ``(n, 3)`` (m) and probe positions at time code ``frame``."""

@@ -30,16 +30,13 @@ class ConstraintSet:
         self.actuators = list(cables) + list(cavities)
         self.effectors = list(effectors)
         self.num_actuators = len(self.actuators)
-        point_xyz, point_names, self.blocks = [], [], []
-        for c in cables:
-            point_xyz += list(c.points)
-            point_names += [f"cable '{c.name}' point {k}" for k in range(len(c.points))]
-        cable_point_ranges = [model.body_info(c.body.name) for c in cables]
+        # mapped points: every cable's path points (each inside its own body), then the effectors
         nodes, weights = [], []
-        for c, info in zip(cables, cable_point_ranges, strict=True):  # a cable's points lie in its body
+        for c in cables:
+            info = model.body_info(c.body.name)
             tets = model.tets_np[info.elem_start:info.elem_start + info.elem_count]
-            ids, w = locate(model.rest_np, tets, np.asarray(c.points), [f"cable '{c.name}' point {k}"
-                                                                         for k in range(len(c.points))])
+            names = [f"cable '{c.name}' point {k}" for k in range(len(c.points))]
+            ids, w = locate(model.rest_np, tets, c.points, names)
             nodes.append(ids)
             weights.append(w)
         if effectors:
@@ -83,6 +80,7 @@ class ConstraintSet:
         col[: self.num_actuators] = np.arange(self.num_actuators)
         self.column_of_row = wp.array(col, dtype=wp.int32, device=d)
         self.W = wp.zeros((self.num_rows, max(self.num_actuators, 1)), dtype=wp.float64, device=d)
+        self._change = wp.zeros((self.num_rows, 1), dtype=wp.float64, device=d)
 
     @property
     def effector_row_slice(self) -> slice:
@@ -120,7 +118,15 @@ class ConstraintSet:
         self.W.zero_()
         wp.launch(rows.rows_times_columns, (self.num_entries, self.num_actuators),
                   inputs=[self.h_row, self.h_node, self.h_coef, x, scale], outputs=[self.W], device=self.model.device)
-        return self.W.numpy()
+        return self.W.numpy().copy()
+
+    def linear_change(self, dx: wp.array) -> np.ndarray:
+        """``H dx`` for one displacement ``dx`` (``(1, n)`` vec3d): the rows' first-order change."""
+        self._change.zero_()
+        wp.launch(rows.rows_times_columns, (self.num_entries, 1),
+                  inputs=[self.h_row, self.h_node, self.h_coef, dx, 1.0], outputs=[self._change],
+                  device=self.model.device)
+        return self._change.numpy()[:, 0].copy()
 
     def forces(self, lam: np.ndarray) -> np.ndarray:
         """Nodal forces ``H^T lambda`` (N), ``(n, 3)``, for multipliers of all rows."""
@@ -133,7 +139,7 @@ class ConstraintSet:
 
     def point_positions(self) -> np.ndarray:
         """Mapped cable and effector points (m) of the last :meth:`evaluate`, ``(p, 3)``."""
-        return self.points.numpy()[: self.num_points]
+        return self.points.numpy()[: self.num_points].copy()
 
     def effector_positions(self) -> dict[str, np.ndarray]:
         n_cable = self.num_points - len(self.effectors)

@@ -1,0 +1,188 @@
+"""Constraint rows and the direct model: compliance, bounds, analytic checks, Jacobian."""
+
+import numpy as np
+import pytest
+import warp as wp
+
+import warpsoft as ws
+from warpsoft.solvers import SparseDirect
+
+L, H = 0.1, 0.01
+MAT = ws.Material(1e6, 0.3, 1000.0)
+
+
+def beam(static=True, divisions=(20, 2, 2)):
+    scene = ws.Scene("beam", static=static, dt=0.01)
+    body = scene.add_body("beam", ws.box_grid((0, -H / 2, -H / 2), (L, H / 2, H / 2), divisions), MAT)
+    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+    return scene, body
+
+
+def cable_beam(inputs=((0.002, "displacement"), (0.5, "force"), (0.001, "displacement")), **bounds):
+    """A clamped beam with three cables along its top, side and bottom, and a tip effector."""
+    scene, body = beam()
+    offsets = [(0, 0.004), (0.004, 0), (0, -0.004)]
+    for k, ((value, mode), (y, z)) in enumerate(zip(inputs, offsets, strict=True)):
+        scene.add_cable(f"c{k}", body, points=[(x, y, z) for x in (0.03, 0.06, 0.095)], pull_point=(-0.01, y, z),
+                        mode=mode, value=value, **bounds)
+    scene.add_effector("tip", (L, 0, 0))
+    return scene
+
+
+def run(scene, steps, **kw):
+    sim = ws.Simulator(scene, **kw)
+    stats = None
+    for _ in range(steps):
+        stats = sim.step()
+    return sim, stats
+
+
+def test_compliance_is_symmetric_positive_definite():
+    sim, _ = run(cable_beam(), 2, tolerance=1e-10)
+    W = sim.last_W[:3]
+    assert np.abs(W - W.T).max() < 1e-7 * np.abs(W).max()
+    assert np.linalg.eigvalsh(0.5 * (W + W.T)).min() > 0
+
+
+@pytest.mark.parametrize("static", [True, False])
+def test_lambda_as_external_force_agrees_with_X_lambda(static):
+    scene = cable_beam()
+    scene.static = static
+    sim, _ = run(scene, 1, tolerance=1e-12)
+    cs = sim.constraints
+    cs.evaluate(wp.clone(sim.model.rest))  # H where the step linearized: the rest state
+    lam = np.zeros(cs.num_rows)
+    lam[:3] = sim.lam
+    direct = SparseDirect(sim.model)
+    direct.factorize(sim.rot, sim.mass_scale, sim.stiffness_scale)
+    full = direct.solve(cs.forces(lam)[None])[0] * sim.constraint_scale
+    via_columns = np.einsum("c,cnk->nk", sim.lam, sim.X.numpy()) * sim.constraint_scale
+    assert np.abs(full).max() > 1e-6
+    assert np.abs(full - via_columns).max() < 1e-8 * np.abs(full).max()
+
+
+def test_displacement_input_is_met_when_forces_stay_within_bounds():
+    sim, stats = run(cable_beam(), 8, tolerance=1e-10)
+    assert stats.actuator_delta["c0"] == pytest.approx(0.002, rel=1e-6)
+    assert stats.actuator_delta["c2"] == pytest.approx(0.001, rel=1e-6)
+    assert stats.actuator_lambda["c1"] == pytest.approx(0.5)  # force input kept
+    assert all(v >= 0 for v in stats.actuator_lambda.values())
+
+
+def test_force_bound_binds():
+    scene = cable_beam(inputs=((0.004, "displacement"),) * 3, max_force=1.0)
+    sim, stats = run(scene, 8, tolerance=1e-10)
+    lam = stats.actuator_lambda
+    assert max(lam.values()) == pytest.approx(1.0)  # the bound holds ...
+    bound = [k for k, v in lam.items() if v == pytest.approx(1.0)]
+    assert all(stats.actuator_delta[k] < 0.004 - 1e-5 for k in bound)  # ... and the input is not met there
+
+
+def test_displacement_bounds_and_step_limit_bind():
+    scene = cable_beam(inputs=((5.0, "force"), (0.01, "displacement"), (0.0, "displacement")),
+                       max_displacement=0.003, max_step=0.001)
+    sim = ws.Simulator(scene, tolerance=1e-10)
+    previous = np.zeros(3)
+    for _ in range(8):
+        stats = sim.step()
+        delta = np.array([stats.actuator_delta[k] for k in ("c0", "c1", "c2")])
+        assert np.all(np.abs(delta - previous) <= 0.001 + 1e-6)  # at most 1 mm per step
+        assert np.all(delta <= 0.003 + 1e-6)
+        previous = delta
+    assert delta[1] == pytest.approx(0.003, rel=1e-4)  # displacement input clipped at its bound
+    assert delta[0] == pytest.approx(0.003, rel=1e-4)  # 5 N would pull further: the bound stops it
+
+
+def test_pushed_cable_stays_slack():
+    scene, body = beam()
+    scene.add_force(body, ws.Plane((L, 0, 0), (1, 0, 0)), (-0.5, 0, 0))  # the tip moves toward the pull point
+    scene.add_cable("cable", body, points=[(L, 0, 0)], pull_point=(-0.02, 0, 0), value=0.0)
+    sim, stats = run(scene, 3, tolerance=1e-10)
+    assert stats.actuator_lambda["cable"] == 0.0  # it cannot push back
+    assert stats.actuator_delta["cable"] > 1e-5  # it went slack: shorter than its rest length
+    assert sim.probe_positions() == {}
+
+
+def test_cable_bar_matches_axial_theory(scene_module):
+    sim, _ = run(scene_module("scenes/validation/cable_bar.py").build(cable_force=1.0), 3)
+    mid = sim.probe_positions()["mid"][0] - 0.05
+    assert mid == pytest.approx(-1.0 * 0.05 / (1e6 * 1e-4), rel=0.02)
+
+
+def test_pressure_sphere_matches_lame_and_converges(scene_module):
+    sphere = scene_module("scenes/validation/pressure_sphere.py")
+    errors = []
+    for h in (0.0025, None):  # None: the default, (b - a) / 6
+        sim, stats = run(sphere.build(mesh_size=h), 3, solver="direct")
+        errors.append(abs(stats.actuator_delta["cavity"] / sphere.lame_volume_growth() - 1.0))
+    assert errors[1] < errors[0] and errors[1] < 0.06
+
+
+def test_kinematic_jacobian_matches_finite_differences():
+    inputs = ((0.002, "displacement"), (0.0018, "displacement"), (0.001, "displacement"))
+    sim, stats = run(cable_beam(inputs), 10, tolerance=1e-11)
+    assert min(stats.actuator_lambda.values()) > 0.05  # every cable taut: all displacement-controlled
+    J = sim.kinematic_jacobian()
+    eps = 1e-5
+    for i in range(3):
+        shifted = [(v + (eps if k == i else 0.0), m) for k, (v, m) in enumerate(inputs)]
+        sim2, _ = run(cable_beam(tuple(shifted)), 10, tolerance=1e-11)
+        fd = (sim2.constraint_geometry()["effectors"]["tip"] - sim.constraint_geometry()["effectors"]["tip"]) / eps
+        assert np.abs(fd - J[:, i]).max() < 0.02 * np.abs(J).max()
+
+
+def test_cavity_row_is_the_volume_gradient(scene_module):
+    sim = ws.Simulator(scene_module("scenes/validation/pressure_sphere.py").build(mesh_size=0.004))
+    cs, rng = sim.constraints, np.random.default_rng(1)
+    q0 = sim.model.rest_np + 2e-4 * rng.standard_normal(sim.model.rest_np.shape)
+    direction = rng.standard_normal(q0.shape)
+
+    def volume(q):
+        cs.evaluate(wp.array(q, dtype=wp.vec3d))
+        return cs.delta.numpy()[0]
+
+    eps = 1e-7
+    fd = (volume(q0 + eps * direction) - volume(q0 - eps * direction)) / (2 * eps)
+    volume(q0)
+    grad = cs.forces(np.array([1.0]))  # H^T e_cavity
+    assert np.sum(grad * direction) == pytest.approx(fd, rel=1e-7)
+
+
+def test_coincident_cable_points_make_no_nan():
+    scene, body = beam()
+    scene.add_cable("c", body, points=[(0.0, 0, 0.004), (0.05, 0, 0.004), (0.05, 0, 0.004), (0.09, 0, 0.004)],
+                    pull_point=(0.0, 0, 0.004), value=0.002)  # zero-length first and third segments
+    sim, stats = run(scene, 3)
+    assert np.all(np.isfinite(sim.state.positions()))
+    assert stats.actuator_delta["c"] == pytest.approx(0.002, rel=1e-3)
+
+
+def test_bad_rows_are_named():
+    scene, body = beam()
+    with pytest.raises(ws.SceneError, match=r"cable 'c': min_force must be >= 0 N"):
+        scene.add_cable("c", body, points=[(0.05, 0, 0)], pull_point=(0, 0, 0), min_force=-1.0)
+    with pytest.raises(ws.SceneError, match=r"cable 'c': mode must be"):
+        scene.add_cable("c", body, points=[(0.05, 0, 0)], pull_point=(0, 0, 0), mode="speed")
+    scene.add_cable("far", body, points=[(0.05, 0, 0), (0.5, 0, 0)], pull_point=(0, 0, 0))
+    with pytest.raises(ws.SceneError, match=r"point 'cable 'far' point 1' at \[0.5, 0.0, 0.0\] m lies outside"):
+        ws.Simulator(scene)
+    scene2, body2 = beam()
+    with pytest.raises(ws.SceneError, match=r"effector 'e': target at t = 0 s must be 3 finite numbers"):
+        scene2.add_effector("e", (L, 0, 0), target=(0.0, float("nan"), 0.0))
+
+
+def test_open_or_misoriented_cavity_is_a_clear_error(scene_module):
+    sphere = scene_module("scenes/validation/pressure_sphere.py")
+    scene = sphere.build(mesh_size=0.004)
+    shell = scene.bodies[0]
+    region = ws.Sphere((0, 0, 0), 0.01, tol=1e-8)
+    with pytest.raises(ws.SceneError, match=r"cavity 'open': the surface is open"):
+        scene.add_cavity("open", shell, region=region)  # no symmetry planes given: open along them
+    tris = scene.cavities[0].surface()
+    with pytest.raises(ws.SceneError, match=r"cavity 'flipped': the surface is mis-oriented"):
+        scene.add_cavity("flipped", shell, triangles=tris[:, [0, 2, 1]],
+                         symmetry_planes=scene.cavities[0].symmetry_planes)
+    mixed = tris.copy()
+    mixed[0] = mixed[0, [0, 2, 1]]
+    with pytest.raises(ws.SceneError, match=r"mis-oriented: edge"):
+        scene.add_cavity("mixed", shell, triangles=mixed, symmetry_planes=scene.cavities[0].symmetry_planes)
