@@ -11,11 +11,17 @@ import warpsoft as ws
 
 def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011, young_modulus=180e3,
           poisson_ratio=0.45, total_mass=0.5, gravity=9.81, dt=0.02, rayleigh_mass=0.1, rayleigh_stiffness=0.1,
-          mesh_size=0.01, cable_displacements=(0.0, 0.0, 0.0, 0.0), ramp_time=1.0, max_cable_displacement=0.02,
-          static=False):
-    """Direct mode: each cable i shortens linearly to ``cable_displacements[i]`` (m) over
-    ``ramp_time`` (s); cables stay within [0, ``max_cable_displacement``] and tension >= 0.
-    ``static=True``: quasi-static steps (no inertia, no damping)."""
+          mesh_size=0.01, mode="direct", cable_displacements=(0.0, 0.0, 0.0, 0.0), ramp_time=1.0,
+          max_cable_displacement=0.02, max_cable_step=0.001, target=None, circle_radius=0.015, circle_depth=0.003,
+          circle_period=4.0, static=False):
+    """``mode="direct"``: each cable i shortens linearly to ``cable_displacements[i]`` (m) over
+    ``ramp_time`` (s). ``mode="inverse"``: the cables follow the effector's ``target`` (x, y, z)
+    (m), or by default a circle of ``circle_radius`` (m), ``circle_depth`` (m) below the rest top,
+    one turn per ``circle_period`` (s), entered over the first quarter turn. Cables stay in
+    [0, ``max_cable_displacement``] (SoftRobots: 20 mm) with tension >= 0; in inverse mode they
+    change by at most ``max_cable_step`` (m) per step. ``static=True``: quasi-static steps."""
+    if mode not in ("direct", "inverse"):
+        raise ws.SceneError(f"diamond: mode must be 'direct' or 'inverse', got {mode!r}")
     if len(cable_displacements) != 4:
         raise ws.SceneError(f"diamond: cable_displacements must have 4 values, got {cable_displacements!r}")
     base_top = 0.01
@@ -33,11 +39,23 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
                           ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
     scene.fix(body, ws.Box((-0.015, -0.015, -0.04), (0.015, 0.015, base_top)))  # SoftRobots' base box
+    step = max_cable_step if mode == "inverse" else math.inf
     for i, (c, d) in enumerate(zip(corners, cable_displacements, strict=True)):
         pull = 0.1 * c * np.array([1.0, 1.0, 0.0]) + np.array([0.0, 0.0, 0.03])
         scene.add_cable(f"cable{i}", body, points=[tuple(c)], pull_point=tuple(pull), mode="displacement",
                         value=lambda t, d=d: d * min(t / ramp_time, 1.0), min_displacement=0.0,
-                        max_displacement=max_cable_displacement)
-    scene.add_effector("effector", (0.0, 0.0, top_height))
+                        max_displacement=max_cable_displacement, max_step=step)
+    top_point = np.array([0.0, 0.0, top_height])
+    if mode == "inverse":
+        if target is None:
+            def circle(t):  # enter the circle over a quarter turn, then go round
+                w, ramp = 2.0 * math.pi * t / circle_period, min(4.0 * t / circle_period, 1.0)
+                r = circle_radius * ramp
+                return top_point + np.array([r * math.cos(w), r * math.sin(w), -circle_depth * ramp])
+            target = circle
+        scene.add_effector("effector", tuple(top_point), target=target)
+        scene.use_inverse_model()
+    else:
+        scene.add_effector("effector", tuple(top_point))
     scene.add_probe("top", (0.0, 0.0, top_height))
     return scene

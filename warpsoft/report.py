@@ -69,6 +69,11 @@ class RunReport:
         targeted = [e.name for e in cs.effectors if e.target is not None]
         if targeted:
             out["targets"] = {name: [np.asarray(s.targets[name]).tolist() for s in self.steps] for name in targeted}
+            out["effector_error"] = {name: [s.effector_error[name] for s in self.steps] for name in targeted}
+        if self.sim.model.scene.inverse:
+            out["inverse"] = {"epsilon": self.sim.model.scene.inverse_epsilon,
+                              "qp_status": [s.qp_status for s in self.steps],
+                              "qp_seconds": [s.qp_seconds for s in self.steps]}
         return out
 
     def to_dict(self) -> dict:

@@ -135,6 +135,8 @@ class Scene:
         self.effectors: list[Effector] = []
         self.rayleigh_mass = 0.0
         self.rayleigh_stiffness = 0.0
+        self.inverse = False
+        self.inverse_epsilon = 1e-4
         self.params: dict = {}
 
     # ---- components -------------------------------------------------------------------
@@ -235,6 +237,16 @@ class Scene:
         self.effectors.append(eff)
         return eff
 
+    def use_inverse_model(self, epsilon: float = 1e-4) -> None:
+        """Resolve the actuators by the inverse model: each step, the actuation (within its
+        bounds) that brings the effectors closest to their targets. ``epsilon`` weighs the
+        actuation energy relative to the task (see ``warpsoft.inverse``); the actuators' own
+        input values are not used."""
+        epsilon = _finite(epsilon, f"scene '{self.name}': inverse epsilon")
+        if epsilon < 0:
+            raise SceneError(f"scene '{self.name}': inverse epsilon must be >= 0, got {epsilon}")
+        self.inverse, self.inverse_epsilon = True, epsilon
+
     @property
     def actuators(self) -> list:
         """Cables then cavities: the order of the actuator rows."""
@@ -272,6 +284,11 @@ class Scene:
                     )
             elif body.material.density <= 0 and not body.overrides:
                 raise SceneError(f"scene '{self.name}': dynamic body '{body.name}' has density 0 (no mass)")
+        if self.inverse:
+            if not self.actuators:
+                raise SceneError(f"scene '{self.name}': the inverse model needs at least one actuator")
+            if not any(e.target is not None for e in self.effectors):
+                raise SceneError(f"scene '{self.name}': the inverse model needs an effector with a target")
 
     def summary(self) -> dict:
         return {

@@ -17,6 +17,7 @@ from .constraints import ConstraintSet
 from .constraints.cable import cable_paths
 from .control import Control
 from .errors import SceneError, SimulationError
+from .inverse import solve_inverse
 from .model import Model, State
 from .resolve import RowInputs, kinematic_jacobian, projected_gauss_seidel
 from .scene import Scene
@@ -42,6 +43,9 @@ class StepStats:
     compliance_iterations: int = 0
     resolve_iterations: int = 0
     resolve_residual: float = 0.0
+    qp_status: str = ""
+    qp_seconds: float = 0.0
+    effector_error: dict[str, float] = field(default_factory=dict)
     actuator_delta: dict[str, float] = field(default_factory=dict)
     actuator_lambda: dict[str, float] = field(default_factory=dict)
     effectors: dict[str, np.ndarray] = field(default_factory=dict)
@@ -113,6 +117,8 @@ class Simulator:
             self.constraints = ConstraintSet(m, scene_.cables, scene_.cavities, scene_.effectors)
             na = self.constraints.num_actuators
             self.lam = np.zeros(na)
+            self._effector_weights = np.concatenate(
+                [np.full(len(e.axes), e.weight) for e in scene_.effectors]) if scene_.effectors else np.zeros(0)
             self.actuator_delta = np.zeros(na)  # delta after the last step (rest: 0)
             if na:
                 self.columns = wp.zeros((na, n), dtype=wp.vec3d, device=d)
@@ -179,19 +185,28 @@ class Simulator:
                 # pneunet oscillated ever wider), and delta(q_free) misses the imposed
                 # displacement by a second-order term (17 % on a bent cable beam); the linear
                 # prediction meets it exactly once the step has converged.
+                if m.scene.inverse:
+                    cs.set_time(stats.time)  # effector rows measure x - target
                 cs.evaluate(self.state.q)
                 delta_free = cs.delta.numpy() + cs.linear_change(self.dx_free)
                 cs.actuator_columns(self.columns)
                 cg = self.compliance_cg if self.solver_name == "cg" else None
                 stats.compliance_iterations = self._solve(self.columns, self.X, cg, stats, "compliance solve")
                 self.last_W = cs.compliance(self.X, self.constraint_scale)
-            with self._stage(stats, "resolve"):  # lambda from the direct model
-                na = cs.num_actuators
-                res = projected_gauss_seidel(self.last_W[:na], delta_free[:na], inputs, self.lam)
-                stats.resolve_iterations, stats.resolve_residual = res.iterations, res.residual
-                if not res.converged:
-                    stats.warnings.append(f"step {stats.index}: Gauss-Seidel stopped after {res.iterations} "
-                                          f"sweeps, last change {res.residual:.3e}")
+            with self._stage(stats, "resolve"):  # lambda from the direct or the inverse model
+                na, eff = cs.num_actuators, cs.effector_row_slice
+                if m.scene.inverse:
+                    res = solve_inverse(self.last_W[:na], self.last_W[eff], delta_free[:na], delta_free[eff], inputs,
+                                        self._effector_weights, self.lam, m.scene.inverse_epsilon)
+                    stats.qp_status, stats.qp_seconds = res.status, res.seconds
+                    if res.warning:
+                        stats.warnings.append(f"step {stats.index}: inverse model: {res.warning}")
+                else:
+                    res = projected_gauss_seidel(self.last_W[:na], delta_free[:na], inputs, self.lam)
+                    stats.resolve_iterations, stats.resolve_residual = res.iterations, res.residual
+                    if not res.converged:
+                        stats.warnings.append(f"step {stats.index}: Gauss-Seidel stopped after {res.iterations} "
+                                              f"sweeps, last change {res.residual:.3e}")
                 self.lam = res.lam
 
         with self._stage(stats, "correct"):  # dx = dx_free + s X lambda; q += dx, v = dx / h
@@ -215,6 +230,9 @@ class Simulator:
                 if targets is not None:
                     stats.targets = {e.name: t for e, t in zip(cs.effectors, targets, strict=True)
                                      if e.target is not None}
+                    stats.effector_error = {e.name: float(np.linalg.norm((stats.effectors[e.name] - t)[e.axis_ids]))
+                                            for e, t in zip(cs.effectors, targets, strict=True)
+                                            if e.target is not None}
 
         self.state, self._next = self._next, self.state
         self.time, self.step_index = stats.time, stats.index

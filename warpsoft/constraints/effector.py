@@ -55,6 +55,17 @@ class Effector:
         return ["xyz".index(a) for a in self.axes]
 
 
+def waypoints(points, times) -> Callable[[float], np.ndarray]:
+    """A target trajectory through ``points`` ``(k, 3)`` (m) reached at ``times`` ``(k,)`` (s),
+    linear in between and held before the first and after the last."""
+    pts, ts = np.asarray(points, dtype=float), np.asarray(times, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or ts.shape != (len(pts),) or np.any(np.diff(ts) <= 0):
+        raise SceneError(f"waypoints: need (k, 3) points and k increasing times, got {pts.shape} and {ts.shape}")
+    if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(ts))):
+        raise SceneError("waypoints: points and times must be finite")
+    return lambda t: np.array([np.interp(t, ts, pts[:, k]) for k in range(3)])
+
+
 class EffectorRows:
     """Device side of all effectors: one thread per controlled axis."""
 

@@ -1,0 +1,102 @@
+"""The inverse model: round trip, redundancy, unreachable targets, bounds, infeasibility."""
+
+import numpy as np
+import pytest
+
+import warpsoft as ws
+from warpsoft.inverse import inverse_hessian, solve_inverse
+from warpsoft.resolve import RowInputs
+
+
+def run(scene, steps):
+    sim = ws.Simulator(scene, solver="direct")
+    history = [sim.step() for _ in range(steps)]
+    return sim, history
+
+
+def diamond(scene_module, **kw):
+    return scene_module("scenes/diamond.py").build(mesh_size=0.014, gravity=0.0, static=True, dt=1.0, **kw)
+
+
+def test_round_trip_direct_then_inverse_reaches_the_target(scene_module):
+    rng = np.random.default_rng(3)
+    pulls = tuple(rng.uniform(0.0, 0.008, 4))
+    _, history = run(diamond(scene_module, cable_displacements=pulls), 8)
+    reached = history[-1].effectors["effector"]
+    assert np.linalg.norm(reached - [0, 0, 0.125]) > 2e-3  # the random actuation did move the top
+    _, history = run(diamond(scene_module, mode="inverse", target=tuple(reached), max_cable_step=0.02), 20)
+    assert history[-1].qp_status == "optimal"
+    assert history[-1].effector_error["effector"] < 2e-5  # recovered to 20 micrometres
+
+
+def test_redundant_trunk_is_unique_and_smooth(scene_module):
+    trunk = scene_module("scenes/trunk.py").build(mesh_size=0.009, period=2.0, static=True, gravity=0.0)
+    sim, history = run(trunk, 60)
+    cs, W = sim.constraints, sim.last_W
+    task = W[cs.effector_row_slice].T @ W[cs.effector_row_slice]
+    assert np.linalg.matrix_rank(task, tol=1e-9 * np.abs(task).max()) <= 4  # 8 cables, 4 effector axes: redundant
+    P = inverse_hessian(W[:8], W[cs.effector_row_slice], np.ones(4))
+    assert np.linalg.eigvalsh(P).min() > 0  # ... yet the QP is strictly convex: one solution
+    assert all(s.qp_status == "optimal" for s in history)
+    assert max(max(s.effector_error.values()) for s in history[10:]) < 1e-3
+    lam = np.array([list(s.actuator_lambda.values()) for s in history])[10:]  # (steps, 8)
+    # smooth in time: no tension moves by more than twice the rate of the sinusoidal sweep itself
+    # (2 pi / 100 of its range per step); a switch between equivalent solutions would move a large part of it
+    assert np.abs(np.diff(lam, axis=0)).max() < 2 * (2 * np.pi / 100) * np.ptp(lam, axis=0).max()
+
+
+def _free_rows(n, dmax=np.inf):
+    return RowInputs(force_mode=np.zeros(n, bool), value=np.zeros(n), lo=np.zeros(n), hi=np.full(n, np.inf),
+                     dmin=np.full(n, -np.inf), dmax=np.full(n, dmax))
+
+
+def test_unreachable_target_ends_at_the_closest_point_on_the_bounds(scene_module):
+    far = (0.0, 0.06, 0.11)  # 6 cm sideways: beyond 20 mm of cable
+    sim, history = run(diamond(scene_module, mode="inverse", target=far, max_cable_step=0.005,
+                               max_cable_displacement=0.012), 16)
+    delta = np.array([list(s.actuator_delta.values()) for s in history])
+    top = np.array([s.effectors["effector"] for s in history])
+    assert history[-1].effector_error["effector"] > 0.01  # unreachable
+    assert np.isclose(delta[-1].max(), 0.012, rtol=1e-3)  # the pulling cable sits on its bound
+    assert np.linalg.norm(top[-1] - top[-2]) < 1e-6  # settled, no oscillation
+    assert np.all(np.abs(np.diff(top[-5:], axis=0)).max() < 1e-5)
+
+
+def test_bounds_are_never_violated_along_a_trajectory(scene_module):
+    scene = scene_module("scenes/diamond.py").build(mesh_size=0.014, gravity=0.0, static=True, dt=0.25,
+                                                     mode="inverse", max_cable_step=0.002, max_cable_displacement=0.01,
+                                                     circle_radius=0.03, circle_period=12.0)
+    _, history = run(scene, 30)
+    delta = np.array([list(s.actuator_delta.values()) for s in history])
+    lam = np.array([list(s.actuator_lambda.values()) for s in history])
+    assert np.all(lam >= 0)
+    # the QP bounds the linear prediction of delta; the geometry adds a second-order term, measured
+    # here below 0.5 % of the range and 5 % of a step (the next step starts from the true value)
+    assert np.all(delta <= 0.01 + 5e-5) and np.all(delta >= -5e-5)
+    steps = np.abs(np.diff(np.vstack([np.zeros(4), delta]), axis=0))
+    assert np.all(steps <= 0.002 * 1.05)
+
+
+def test_infeasible_bounds_are_reported_and_safe():
+    W_aa = np.array([[2.0, 0.5], [0.5, 1.0]]) * 1e-3
+    W_ea = np.array([[1.0, -1.0], [0.5, 0.5]]) * 1e-3
+    rows = RowInputs(force_mode=np.zeros(2, bool), value=np.zeros(2), lo=np.zeros(2), hi=np.full(2, 1e-3),
+                     dmin=np.array([0.01, -np.inf]), dmax=np.full(2, np.inf))  # must shorten 1 cm, may barely pull
+    res = solve_inverse(W_aa, W_ea, np.zeros(2), np.array([0.01, 0.0]), rows, np.ones(2), previous=np.array([0.5, 0.2]))
+    assert res.status == "infeasible" and "previous actuation is kept" in res.warning
+    assert np.array_equal(res.lam, [1e-3, 1e-3])  # the previous actuation, clipped to the force bounds
+    empty = RowInputs(force_mode=np.zeros(2, bool), value=np.zeros(2), lo=np.array([2.0, 0.0]),
+                      hi=np.array([1.0, np.inf]), dmin=np.full(2, -np.inf), dmax=np.full(2, np.inf))
+    res = solve_inverse(W_aa, W_ea, np.zeros(2), np.zeros(2), empty, np.ones(2), previous=np.zeros(2))
+    assert res.status == "infeasible" and "empty bounds" in res.warning and np.all(np.isfinite(res.lam))
+
+
+def test_inverse_scene_needs_a_target():
+    scene = ws.Scene("s", static=True)
+    body = scene.add_body("b", ws.box_grid((0, 0, 0), (0.05, 0.01, 0.01), (5, 1, 1)), ws.Material(1e5, 0.3))
+    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+    scene.add_cable("c", body, points=[(0.05, 0.005, 0.005)], pull_point=(-0.01, 0.005, 0.005))
+    scene.add_effector("e", (0.05, 0.005, 0.005))
+    scene.use_inverse_model()
+    with pytest.raises(ws.SceneError, match="needs an effector with a target"):
+        ws.Simulator(scene)
