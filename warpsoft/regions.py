@@ -78,39 +78,38 @@ class Box(Region):
         return f"Box(lo={self.lo.tolist()}, hi={self.hi.tolist()})"
 
 
-class Plane(Region):
-    """Points within ``tol`` (m) of the plane through ``point`` with normal ``normal``."""
+class _Oriented(Region):
+    """A plane through ``point`` with unit ``normal`` and a tolerance ``tol`` (m)."""
 
     def __init__(self, point, normal, tol: float = 1e-6):
-        self.point = _vec3(point, "Plane.point")
-        n = _vec3(normal, "Plane.normal")
+        kind = type(self).__name__
+        self.point = _vec3(point, f"{kind}.point")
+        n = _vec3(normal, f"{kind}.normal")
         if np.linalg.norm(n) == 0:
-            raise SceneError("Plane.normal must be non-zero")
+            raise SceneError(f"{kind}.normal must be non-zero")
         self.normal, self.tol = n / np.linalg.norm(n), float(tol)
 
-    def __call__(self, points):
-        return np.abs((np.asarray(points) - self.point) @ self.normal) <= self.tol
+    def distance(self, points) -> np.ndarray:
+        """Signed distance (m) along the normal."""
+        return (np.asarray(points) - self.point) @ self.normal
 
     def __repr__(self):
-        return f"Plane(point={self.point.tolist()}, normal={self.normal.tolist()})"
+        return f"{type(self).__name__}(point={self.point.tolist()}, normal={self.normal.tolist()})"
 
 
-class HalfSpace(Region):
+class Plane(_Oriented):
+    """Points within ``tol`` (m) of the plane through ``point`` with normal ``normal``."""
+
+    def __call__(self, points):
+        return np.abs(self.distance(points)) <= self.tol
+
+
+class HalfSpace(_Oriented):
     """Points on the side of the plane that ``normal`` points away from:
     ``(x - point) . normal <= tol`` (m)."""
 
-    def __init__(self, point, normal, tol: float = 1e-6):
-        self.point = _vec3(point, "HalfSpace.point")
-        n = _vec3(normal, "HalfSpace.normal")
-        if np.linalg.norm(n) == 0:
-            raise SceneError("HalfSpace.normal must be non-zero")
-        self.normal, self.tol = n / np.linalg.norm(n), float(tol)
-
     def __call__(self, points):
-        return (np.asarray(points) - self.point) @ self.normal <= self.tol
-
-    def __repr__(self):
-        return f"HalfSpace(point={self.point.tolist()}, normal={self.normal.tolist()})"
+        return self.distance(points) <= self.tol
 
 
 class Sphere(Region):
