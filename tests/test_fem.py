@@ -93,3 +93,16 @@ def test_cg_agrees_with_direct_solve():
         results.append(sim.state.positions() - sim.model.rest_np)
     assert np.abs(results[0]).max() > 1e-4
     assert np.abs(results[0] - results[1]).max() < 1e-8 * np.abs(results[1]).max()
+
+
+def test_residual_checks_every_k_iterations_give_the_same_solution():
+    positions = []
+    for k in (1, 7):
+        scene = ws.Scene("sag", gravity=(0, 0, -9.81), dt=0.02)
+        body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.08, W, H), (16, 2, 2)), RUBBER)
+        scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+        sim = ws.Simulator(scene, tolerance=1e-10, check_every=k)
+        stats = sim.step()
+        assert stats.converged and stats.cg_iterations % k == 0
+        positions.append(sim.state.positions())
+    assert np.abs(positions[0] - positions[1]).max() < 1e-8 * np.abs(positions[0] - positions[0][0]).max()

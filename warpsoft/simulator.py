@@ -64,11 +64,14 @@ class Simulator:
         max_iterations: CG iteration cap (reaching it is a warning in the step stats).
         warm_start: start each free solve from the previous step's solution.
         timing: synchronize the device around stages to time them (CUDA only matters).
+        check_every: CG reads its residual back every this many iterations (default: 1 on
+            the CPU, where reading is free; 16 on CUDA, where each read stalls the device).
+        graphs: on CUDA, replay the CG iterations as captured graphs.
     """
 
     def __init__(self, scene: Scene | Model, device: str | None = None, solver: str = "cg",
                  tolerance: float = 1e-6, max_iterations: int = 2000, warm_start: bool = True,
-                 timing: bool = True):
+                 timing: bool = True, check_every: int | None = None, graphs: bool = True):
         if solver not in ("cg", "direct"):
             raise SceneError(f"Simulator: solver must be 'cg' or 'direct', got {solver!r}")
         if not (0.0 < float(tolerance) < 1.0):
@@ -103,9 +106,15 @@ class Simulator:
             self.stiffness_scale = h * h + h * scene_.rayleigh_stiffness
         self.operator = SystemOperator(m, self.rot)
         self.operator.set_scales(self.mass_scale, self.stiffness_scale)
+        if check_every is None:
+            check_every = 16 if d.is_cuda else 1
+        if int(check_every) < 1:
+            raise SceneError(f"Simulator: check_every must be >= 1, got {check_every!r}")
+        cg_options = {"tolerance": tolerance, "max_iterations": max_iterations, "check_every": int(check_every),
+                      "graphs": graphs}
         if solver == "cg":
             self.preconditioner = BlockJacobi(self.operator)
-            self.cg = BlockJacobiCG(self.operator, self.preconditioner, 1, tolerance, max_iterations)
+            self.cg = BlockJacobiCG(self.operator, self.preconditioner, 1, **cg_options)
         else:
             self.direct = SparseDirect(m)
 
@@ -124,8 +133,7 @@ class Simulator:
                 self.columns = wp.zeros((na, n), dtype=wp.vec3d, device=d)
                 self.X = wp.zeros((na, n), dtype=wp.vec3d, device=d)  # A X = H_a^T, warm-started
                 if solver == "cg":
-                    self.compliance_cg = BlockJacobiCG(self.operator, self.preconditioner, na, tolerance,
-                                                       max_iterations)
+                    self.compliance_cg = BlockJacobiCG(self.operator, self.preconditioner, na, **cg_options)
 
     # ---- the step ------------------------------------------------------------------------
     def step(self, control: Control | None = None) -> StepStats:
