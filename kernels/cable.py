@@ -2,6 +2,8 @@
 
 import warp as wp
 
+from .rows import write_point_entries
+
 EPS_LENGTH = wp.constant(wp.float64(1e-12))  # m: a shorter segment has no direction (no NaN)
 
 
@@ -43,12 +45,7 @@ def cable_rows(
         g = unit_or_zero(prev - p)
         if j + 1 < n:
             g = g + unit_or_zero(points[s + j + 1] - p)
-        nodes = point_nodes[s + j]
-        w = point_weights[s + j]
-        for a in range(4):
-            e = entry_offset + 4 * (s + j) + a
-            h_row[e] = r
-            h_node[e] = nodes[a]
-            h_coef[e] = w[a] * g
+        write_point_entries(h_row, h_node, h_coef, entry_offset + 4 * (s + j), r, point_nodes[s + j],
+                            point_weights[s + j], g)
         prev = p
     delta[r] = rest_length[cab] - length

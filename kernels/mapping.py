@@ -2,6 +2,8 @@
 
 import warp as wp
 
+from .rows import write_point_entries
+
 
 @wp.kernel
 def interpolate_points(
@@ -40,10 +42,4 @@ def effector_rows(
     delta[r] = points[p][ax] - target[k]
     unit = wp.vec3d()
     unit[ax] = wp.float64(1.0)
-    nodes = point_nodes[p]
-    w = point_weights[p]
-    for a in range(4):
-        e = entry_offset + 4 * k + a
-        h_row[e] = r
-        h_node[e] = nodes[a]
-        h_coef[e] = w[a] * unit
+    write_point_entries(h_row, h_node, h_coef, entry_offset + 4 * k, r, point_nodes[p], point_weights[p], unit)

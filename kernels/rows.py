@@ -4,6 +4,25 @@ entries ``(h_row[k], h_node[k], h_coef[k])``: row id, node id, 3-vector coeffici
 import warp as wp
 
 
+@wp.func
+def write_point_entries(
+    h_row: wp.array(dtype=wp.int32),
+    h_node: wp.array(dtype=wp.int32),
+    h_coef: wp.array(dtype=wp.vec3d),
+    first: int,
+    row: int,
+    nodes: wp.vec4i,
+    weights: wp.vec4d,
+    direction: wp.vec3d,
+):
+    """The four entries ``first .. first+3`` of row ``row`` for a point mapped into a
+    tetrahedron: ``H`` at node ``nodes[a]`` is ``weights[a] * direction``."""
+    for a in range(4):
+        h_row[first + a] = row
+        h_node[first + a] = nodes[a]
+        h_coef[first + a] = weights[a] * direction
+
+
 @wp.kernel
 def rows_to_columns(
     h_row: wp.array(dtype=wp.int32),

@@ -79,6 +79,7 @@ def test_report_and_usd_carry_actuators_and_effectors(tmp_path):
     assert cable["kind"] == "cable" and cable["mode"] == "displacement"
     assert len(cable["delta"]) == len(cable["lambda"]) == 3 and min(cable["lambda"]) >= 0
     assert len(d["W"]) == 3 and len(d["W"][0]) == 1 and d["W"][0][0][0] > 0
+    assert all(i >= 1 for i in d["resolve_iterations"]) and all(r < 1e-9 for r in d["resolve_residuals"])
     assert len(d["effectors"]["fingertip"]) == 3 and "targets" not in d  # the fingertip has no target
     stage = Usd.Stage.Open(str(usd))
     curve = UsdGeom.BasisCurves(stage.GetPrimAtPath("/World/cables/cable"))

@@ -106,3 +106,24 @@ def test_residual_checks_every_k_iterations_give_the_same_solution():
         assert stats.converged and stats.cg_iterations % k == 0
         positions.append(sim.state.positions())
     assert np.abs(positions[0] - positions[1]).max() < 1e-8 * np.abs(positions[0] - positions[0][0]).max()
+
+
+def test_stiffness_contrast_of_1e4_between_parts():
+    """A stiff half (1e4 times the modulus) and a soft half: CG still converges and agrees with
+    the direct solve, and the stiff half barely deforms."""
+    tips = []
+    for solver in ("cg", "direct"):
+        scene = ws.Scene("contrast", static=True)
+        body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.08, W, H), (16, 2, 2)), RUBBER)
+        body.set_material(ws.Box((0.0, -1, -1), (0.04, 1, 1)), ws.Material(1e4 * RUBBER.young_modulus, 0.3, 1000.0))
+        scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+        scene.add_force(body, ws.Plane((0.08, 0, 0), (1, 0, 0)), (0, 0, -1e-3))
+        scene.add_probe("joint", (0.04, W / 2, H / 2))
+        scene.add_probe("tip", (0.08, W / 2, H / 2))
+        sim = ws.Simulator(scene, solver=solver, tolerance=1e-10, max_iterations=20000)
+        stats = sim.step()
+        assert stats.converged and not stats.warnings
+        p = sim.probe_positions()
+        tips.append(p["tip"][2] - H / 2)
+        assert abs(p["joint"][2] - H / 2) < 1e-3 * abs(tips[-1])  # the stiff half hardly bends
+    assert tips[0] == pytest.approx(tips[1], rel=1e-6)

@@ -25,10 +25,6 @@ class State:
         """A copy of the positions as a ``(n, 3)`` NumPy array (m)."""
         return self.q.numpy().copy()
 
-    def assign(self, other: State) -> None:
-        wp.copy(self.q, other.q)
-        wp.copy(self.v, other.v)
-
 
 @dataclass
 class BodyInfo:
@@ -47,7 +43,7 @@ class Model:
 
     Arrays (device): ``rest`` (n vec3d, m), ``tets`` (m vec4i), ``dm_inv`` (m mat33d, 1/m),
     ``volume`` (m float64, m^3), ``mu``/``lam`` (m float64, Pa), ``mass`` (n float64, kg; only
-    in dynamic scenes), ``mask`` (n vec3d, 1 = free, 0 = fixed), ``f_const`` (n vec3d, N:
+    in dynamic scenes or under gravity, else None), ``mask`` (n vec3d, 1 = free, 0 = fixed), ``f_const`` (n vec3d, N:
     gravity and constant loads; None when there are none), probe ``probe_nodes`` /
     ``probe_weights``.
     """

@@ -290,14 +290,6 @@ class Scene:
             if not any(e.target is not None for e in self.effectors):
                 raise SceneError(f"scene '{self.name}': the inverse model needs an effector with a target")
 
-    def summary(self) -> dict:
-        return {
-            "bodies": [b.name for b in self.bodies],
-            "static": self.static,
-            "dt": self.dt,
-            "gravity": self.gravity.tolist(),
-        }
-
 
 def load_weights(load: Load) -> np.ndarray:
     """Per-node share (sums to 1) of ``load`` over its body's nodes, by surface area."""

@@ -82,7 +82,6 @@ class EffectorRows:
         self.num_entries = 4 * len(rows)
         self.point = wp.array(np.array(point, dtype=np.int32), dtype=wp.int32, device=device)
         self.axis = wp.array(np.array(axis, dtype=np.int32), dtype=wp.int32, device=device)
-        self.axis_np = np.array(axis)
         self.row = wp.array(np.array(rows, dtype=np.int32), dtype=wp.int32, device=device)
         self.target = wp.zeros(len(rows), dtype=wp.float64, device=device)
 
