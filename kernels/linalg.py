@@ -161,3 +161,84 @@ def step_health(x: wp.array(dtype=wp.vec3d), dx: wp.array(dtype=wp.vec3d), bad: 
         wp.atomic_add(bad, 0, 1)
     else:
         wp.atomic_max(largest, 0, wp.dot(dx[i], dx[i]))
+
+
+# ---- preconditioned CG with any preconditioner and a device-side stopping test (solver "pcg") ----
+# The preconditioner is applied by its own kernels between these; the loop runs under
+# ``wp.capture_while`` on ``active``, which :func:`pcg_check` clears, so no host read is needed.
+
+ITERATIONS = wp.constant(0)  # info[ITERATIONS]: iterations done by the current solve
+NONFINITE = wp.constant(1)  # info[NONFINITE]: 1 when a column met NaN or inf
+
+
+@wp.kernel
+def pcg_residual(
+    b: wp.array2d(dtype=wp.vec3d),
+    ax: wp.array2d(dtype=wp.vec3d),
+    mask: wp.array(dtype=wp.vec3d),
+    r: wp.array2d(dtype=wp.vec3d),
+    scal: wp.array2d(dtype=wp.float64),
+):
+    """``r = P(b - A x0)``; accumulates ``r.r`` and ``b.b`` (``scal`` zeroed before)."""
+    c, i = wp.tid()
+    m = mask[i]
+    bi = wp.cw_mul(m, b[c, i])
+    ri = bi - wp.cw_mul(m, ax[c, i])
+    r[c, i] = ri
+    wp.atomic_add(scal, c, R2_LAST, wp.dot(ri, ri))
+    wp.atomic_add(scal, c, B2, wp.dot(bi, bi))
+
+
+@wp.kernel
+def pcg_begin(r: wp.array2d(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d), x: wp.array2d(dtype=wp.vec3d),
+              p: wp.array2d(dtype=wp.vec3d), scal: wp.array2d(dtype=wp.float64)):
+    """``p = z``; accumulates ``r.z``. A column with ``b = 0`` has the solution 0, whatever its
+    warm start: its ``x``, ``r`` and ``p`` are cleared, so that it stays 0."""
+    c, i = wp.tid()
+    if scal[c, B2] == wp.float64(0.0):
+        x[c, i] = wp.vec3d()
+        r[c, i] = wp.vec3d()
+        p[c, i] = wp.vec3d()
+    else:
+        p[c, i] = z[c, i]
+        wp.atomic_add(scal, c, RZ, wp.dot(r[c, i], z[c, i]))
+
+
+@wp.kernel
+def pcg_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d),
+               ap: wp.array2d(dtype=wp.vec3d), scal: wp.array2d(dtype=wp.float64)):
+    """``x += alpha p``, ``r -= alpha A p`` with ``alpha = r.z / p.Ap``; accumulates ``r.r``."""
+    c, i = wp.tid()
+    alpha = wp.float64(0.0)
+    if scal[c, PAP] > wp.float64(0.0):
+        alpha = scal[c, RZ] / scal[c, PAP]
+    x[c, i] = x[c, i] + alpha * p[c, i]
+    ri = r[c, i] - alpha * ap[c, i]
+    r[c, i] = ri
+    wp.atomic_add(scal, c, R2, wp.dot(ri, ri))
+
+
+@wp.kernel
+def pcg_rz(r: wp.array2d(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d), scal: wp.array2d(dtype=wp.float64)):
+    """Accumulates the new ``r.z``."""
+    c, i = wp.tid()
+    wp.atomic_add(scal, c, RZ_NEW, wp.dot(r[c, i], z[c, i]))
+
+
+@wp.kernel
+def pcg_check(scal: wp.array2d(dtype=wp.float64), tolerance: wp.float64, max_iterations: int, done: int,
+              info: wp.array(dtype=wp.int32), active: wp.array(dtype=wp.int32)):
+    """One thread: count ``done`` more iterations; keep ``active`` while some column has
+    ``|r| > tolerance |b|``, every value is finite and the iteration cap is not reached."""
+    info[ITERATIONS] = info[ITERATIONS] + done
+    more = wp.int32(0)  # wp.int32, not int(): a dynamic variable (ruff would fold int(0) to 0)
+    for c in range(scal.shape[0]):
+        b2 = scal[c, B2]
+        r2 = scal[c, R2_LAST]
+        if not (wp.isfinite(b2) and wp.isfinite(r2) and wp.isfinite(scal[c, RZ])):
+            info[NONFINITE] = 1
+        elif b2 > wp.float64(0.0) and r2 > tolerance * tolerance * b2:
+            more = wp.int32(1)
+    if info[NONFINITE] != 0 or info[ITERATIONS] >= max_iterations:
+        more = wp.int32(0)
+    active[0] = more

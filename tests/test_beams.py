@@ -8,7 +8,7 @@ import warpsoft as ws
 P = 0.01  # N, small: linear regime
 
 
-def tip_error(cantilever, solver="cg", **kw):
+def tip_error(cantilever, solver="pcg", **kw):
     scene = cantilever.build(tip_force=P, **kw)
     sim = ws.Simulator(scene, solver=solver)
     stats = sim.step()

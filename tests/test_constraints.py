@@ -5,7 +5,7 @@ import pytest
 import warp as wp
 
 import warpsoft as ws
-from warpsoft.solvers import SparseDirect
+from warpsoft.linear import SparseDirect
 
 L, H = 0.1, 0.01
 MAT = ws.Material(1e6, 0.3, 1000.0)
@@ -53,9 +53,9 @@ def test_lambda_as_external_force_agrees_with_X_lambda(static):
     cs.evaluate(wp.clone(sim.model.rest))  # H where the step linearized: the rest state
     lam = np.zeros(cs.num_rows)
     lam[:3] = sim.lam
-    direct = SparseDirect(sim.model)
-    direct.factorize(sim.rot, sim.mass_scale, sim.stiffness_scale)
-    full = direct.solve(cs.forces(lam)[None])[0] * sim.constraint_scale
+    direct = SparseDirect(sim.operator)
+    direct.prepare()
+    full = direct.solve_array(cs.forces(lam)[None])[0] * sim.constraint_scale
     via_columns = np.einsum("c,cnk->nk", sim.lam, sim.X.numpy()) * sim.constraint_scale
     assert np.abs(full).max() > 1e-6
     assert np.abs(full - via_columns).max() < 1e-8 * np.abs(full).max()

@@ -82,7 +82,7 @@ def test_inverted_elements_recover():
 
 def test_cg_agrees_with_direct_solve():
     results = []
-    for solver in ("cg", "direct"):
+    for solver in ("direct", "pcg", "jacobi"):
         scene = ws.Scene("sag", gravity=(0, 0, -9.81), dt=0.02)
         body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.08, W, H), (16, 2, 2)), RUBBER)
         scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
@@ -92,7 +92,8 @@ def test_cg_agrees_with_direct_solve():
             sim.step()
         results.append(sim.state.positions() - sim.model.rest_np)
     assert np.abs(results[0]).max() > 1e-4
-    assert np.abs(results[0] - results[1]).max() < 1e-8 * np.abs(results[1]).max()
+    for other in results[1:]:
+        assert np.abs(other - results[0]).max() < 1e-8 * np.abs(results[0]).max()
 
 
 def test_residual_checks_every_k_iterations_give_the_same_solution():
@@ -101,9 +102,9 @@ def test_residual_checks_every_k_iterations_give_the_same_solution():
         scene = ws.Scene("sag", gravity=(0, 0, -9.81), dt=0.02)
         body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.08, W, H), (16, 2, 2)), RUBBER)
         scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
-        sim = ws.Simulator(scene, tolerance=1e-10, check_every=k)
+        sim = ws.Simulator(scene, solver="jacobi", tolerance=1e-10, check_every=k)
         stats = sim.step()
-        assert stats.converged and stats.cg_iterations % k == 0
+        assert stats.converged and stats.cg_iterations > 0 and stats.cg_iterations % k == 0
         positions.append(sim.state.positions())
     assert np.abs(positions[0] - positions[1]).max() < 1e-8 * np.abs(positions[0] - positions[0][0]).max()
 
@@ -112,7 +113,7 @@ def test_stiffness_contrast_of_1e4_between_parts():
     """A stiff half (1e4 times the modulus) and a soft half: CG still converges and agrees with
     the direct solve, and the stiff half barely deforms."""
     tips = []
-    for solver in ("cg", "direct"):
+    for solver in ("direct", "pcg", "jacobi"):
         scene = ws.Scene("contrast", static=True)
         body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.08, W, H), (16, 2, 2)), RUBBER)
         body.set_material(ws.Box((0.0, -1, -1), (0.04, 1, 1)), ws.Material(1e4 * RUBBER.young_modulus, 0.3, 1000.0))
@@ -126,4 +127,5 @@ def test_stiffness_contrast_of_1e4_between_parts():
         p = sim.probe_positions()
         tips.append(p["tip"][2] - H / 2)
         assert abs(p["joint"][2] - H / 2) < 1e-3 * abs(tips[-1])  # the stiff half hardly bends
-    assert tips[0] == pytest.approx(tips[1], rel=1e-6)
+    assert tips[1] == pytest.approx(tips[0], rel=1e-6)
+    assert tips[2] == pytest.approx(tips[0], rel=1e-6)

@@ -1,12 +1,15 @@
 """Per-step cost of the reference scenes: the paper's Table 1, measured here.
 
-    python tools/bench.py --device cpu [--steps 10] [--solver direct] [--compare] [--out out/bench]
+    python tools/bench.py --device cpu|cuda [--steps 10] [--solver auto|pcg|direct|jacobi] [--compare]
 
 For each scene in SCENES (a new scene joins by being listed): DOFs, elements, actuators,
 contacts, direct or inverse model, median and p90 step time and the median of each stage,
 with warm-up steps (kernel compilation, the first factorizations) excluded. ``--compare``
-runs the matrix-free CG path and the assembled direct path in the same run and gives their
-ratio. Writes bench.json and bench.md.
+runs v1's default path for the device (CPU: SuperLU direct; CUDA: block-Jacobi CG) and v2's
+(CPU: CHOLMOD direct; CUDA: warped-factorization PCG) in the same run and gives their ratio.
+Per row: CG iterations, kernel launches and host transfers per step (counted in one extra,
+uncaptured step), the launch floor (launches x graph replay cost) and, on CUDA, the peak
+device memory per DOF. Writes bench.json and bench.md.
 """
 
 from __future__ import annotations
@@ -39,75 +42,133 @@ SCENES = [
 # SOFA SoftRobots, Table 1 of Coevoet et al. 2017 (Intel i5-4590, one thread), ms per step
 PAPER_MS = {"diamond_inverse": 22.0, "trunk": 29.0}
 
+# v1 and v2 per device: the solver (and options) each release used by default there
+CONFIGS = {
+    "v1": {"cpu": ("direct", {"factorization": "superlu"}), "cuda": ("jacobi", {})},
+    "v2": {"cpu": ("direct", {}), "cuda": ("pcg", {})},
+}
+
+LAUNCH_FLOOR_US = 1.3  # replay cost of one kernel in a CUDA graph, measured on the GPU machine
+
+
+class Counter:
+    """Counts kernel launches and host transfers (``numpy()``, ``assign``) while active."""
+
+    def __init__(self):
+        import warp as wp
+
+        self.wp, self.launches, self.transfers, self._saved = wp, 0, 0, None
+
+    def __enter__(self):
+        wp = self.wp
+        self._saved = (wp.launch, wp.launch_tiled, wp.array.numpy, wp.array.assign)
+
+        def count(kind, f):
+            def wrapped(*a, **k):
+                setattr(self, kind, getattr(self, kind) + 1)
+                return f(*a, **k)
+            return wrapped
+
+        wp.launch, wp.launch_tiled = count("launches", wp.launch), count("launches", wp.launch_tiled)
+        wp.array.numpy, wp.array.assign = count("transfers", wp.array.numpy), count("transfers", wp.array.assign)
+        return self
+
+    def __exit__(self, *exc):
+        self.wp.launch, self.wp.launch_tiled, self.wp.array.numpy, self.wp.array.assign = self._saved
+
 
 def measure(name: str, path: str, params: dict, device: str, solver: str, steps: int, warmup: int,
             **options) -> dict:
+    import warp as wp
+
     scene = build_scene(ROOT / path, params)
     sim = Simulator(scene, device=device, solver=solver, **options)
     for _ in range(warmup):
         sim.step()
     stats = [sim.step() for _ in range(steps)]
+    # one more step, uncaptured, to count what a step launches and moves (graphs replay the same kernels)
+    graph = getattr(sim.solver, "graph", None)
+    if graph is not None:
+        sim.solver.graph = False
+    with Counter() as counter:
+        sim.step()
+    if graph is not None:
+        sim.solver.graph = graph
     m, cs = sim.model, sim.constraints
     stages = sorted({k for s in stats for k in s.stages})
+    d = wp.get_device(device)
+    peak = wp.get_mempool_used_mem_high(d) if d.is_cuda and wp.is_mempool_enabled(d) else None
     return {
-        "scene": name, "params": params, "device": str(m.device), "solver": solver,
+        "scene": name, "params": params, "device": str(m.device), "solver": sim.solver_name,
+        "options": {k: v for k, v in options.items() if v is not None},
         "dofs": m.num_dofs, "elements": m.num_elements,
         "actuators": cs.num_actuators if cs is not None else 0, "contacts": 0,
         "model": "inverse" if scene.inverse else "direct", "static": m.static,
         "step_ms": {k: 1e3 * v for k, v in percentiles([s.total for s in stats]).items() if k != "count"},
         "stages_ms": {k: 1e3 * float(np.median([s.stages.get(k, 0.0) for s in stats])) for k in stages},
         "cg_iterations_median": float(np.median([s.cg_iterations for s in stats])),
-        "compliance_iterations_median": float(np.median([s.compliance_iterations for s in stats])),
-        "steps": steps, "warmup": warmup, "options": options,
+        "launches_per_step": counter.launches, "host_transfers_per_step": counter.transfers,
+        "launch_floor_ms": 1e-3 * LAUNCH_FLOOR_US * counter.launches,
+        "peak_device_bytes_per_dof": None if peak is None else peak / m.num_dofs,
+        "refreshes": getattr(getattr(sim.solver, "precond", None), "refreshes", None),
+        "steps": steps, "warmup": warmup,
     }
 
 
-def markdown(rows: list[dict], compare: bool) -> str:
-    head = ("| scene | model | DOFs | elements | actuators | contacts | solver | step median (ms) | p90 (ms) "
-            "| stages, median (ms) | CG its (free / compliance) | paper (ms) |")
-    out = [head, "|" + "---|" * 12]
+def markdown(rows: list[dict]) -> str:
+    head = ("| scene | config | model | DOFs | solver | step median (ms) | p90 (ms) | stages, median (ms) | CG its "
+            "| launches / transfers per step | launch floor (ms) | bytes/DOF | paper (ms) |")
+    out = [head, "|" + "---|" * 13]
     for r in rows:
-        st = ", ".join(f"{k} {v:.1f}" for k, v in r["stages_ms"].items())
-        its = (f"{r['cg_iterations_median']:.0f} / {r['compliance_iterations_median']:.0f}"
-               if r["solver"] == "cg" else "-")
-        out.append(f"| {r['scene']} | {r['model']} | {r['dofs']} | {r['elements']} | {r['actuators']} | "
-                   f"{r['contacts']} | {r['solver']} | {r['step_ms']['median']:.1f} | {r['step_ms']['p90']:.1f} | "
-                   f"{st} | {its} | {PAPER_MS.get(r['scene'], '')} |")
-    if compare:
-        out += ["", "| scene | CG median (ms) | direct median (ms) | CG / direct |", "|---|---|---|---|"]
-        by = {(r["scene"], r["solver"]): r for r in rows}
-        for name in dict.fromkeys(r["scene"] for r in rows):
-            cg, di = by.get((name, "cg")), by.get((name, "direct"))
-            if cg and di:
-                out.append(f"| {name} | {cg['step_ms']['median']:.1f} | {di['step_ms']['median']:.1f} | "
-                           f"{cg['step_ms']['median'] / di['step_ms']['median']:.1f} |")
+        st = ", ".join(f"{k} {v:.2f}" for k, v in r["stages_ms"].items())
+        mem = "" if r["peak_device_bytes_per_dof"] is None else f"{r['peak_device_bytes_per_dof']:.0f}"
+        out.append(f"| {r['scene']} | {r['config']} | {r['model']} | {r['dofs']} | {r['solver']} | "
+                   f"{r['step_ms']['median']:.2f} | {r['step_ms']['p90']:.2f} | {st} | "
+                   f"{r['cg_iterations_median']:.0f} | "
+                   f"{r['launches_per_step']} / {r['host_transfers_per_step']} | {r['launch_floor_ms']:.2f} | {mem} | "
+                   f"{PAPER_MS.get(r['scene'], '')} |")
+    by = {(r["scene"], r["config"]): r for r in rows}
+    pairs = [(n, by[(n, "v1")], by[(n, "v2")]) for n in dict.fromkeys(r["scene"] for r in rows)
+             if (n, "v1") in by and (n, "v2") in by]
+    if pairs:
+        out += ["", "| scene | v1 median (ms) | v2 median (ms) | v1 / v2 |", "|---|---|---|---|"]
+        for n, a, b in pairs:
+            out.append(f"| {n} | {a['step_ms']['median']:.2f} | {b['step_ms']['median']:.2f} | "
+                       f"{a['step_ms']['median'] / b['step_ms']['median']:.1f} |")
     return "\n".join(out) + "\n"
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--device", default="cpu")
-    ap.add_argument("--solver", choices=["cg", "direct"], default=None,
-                    help="default: direct on cpu (the fast CPU path), cg elsewhere")
-    ap.add_argument("--compare", action="store_true", help="run both solvers and give their ratio")
+    ap.add_argument("--solver", choices=["auto", "pcg", "direct", "jacobi"], default="auto")
+    ap.add_argument("--compare", action="store_true", help="run v1's and v2's default paths and give their ratio")
     ap.add_argument("--steps", type=int, default=10)
     ap.add_argument("--warmup", type=int, default=2)
     ap.add_argument("--scenes", nargs="*", default=None, help="names from SCENES (default: all)")
     ap.add_argument("--out", default="out/bench")
-    ap.add_argument("--check-every", type=int, default=None, help="CG residual read-back period (see Simulator)")
-    ap.add_argument("--no-graphs", action="store_true", help="launch CG iterations one by one on CUDA")
+    ap.add_argument("--precision", choices=["float64", "float32"], default="float64",
+                    help="pcg's dense warped inverse")
     args = ap.parse_args(argv)
-    options = {"check_every": args.check_every, "graphs": not args.no_graphs}
-    solvers = ["cg", "direct"] if args.compare else [args.solver or ("direct" if args.device == "cpu" else "cg")]
+    kind = "cuda" if args.device.startswith("cuda") else "cpu"
+    if args.compare:
+        runs = [(c, *CONFIGS[c][kind]) for c in ("v1", "v2")]
+    else:
+        runs = [("v2", args.solver, {"precision": args.precision} if args.solver in ("pcg", "auto") else {})]
     chosen = [s for s in SCENES if args.scenes is None or s[0] in args.scenes]
     rows = []
     for name, path, params in chosen:
-        for solver in solvers:
+        if "mesh" in params and not Path(params["mesh"]).is_file():
+            print(f"{name:16s} skipped: {params['mesh']} not found", flush=True)
+            continue
+        for config, solver, options in runs:
             t0 = time.perf_counter()
-            rows.append(measure(name, path, params, args.device, solver, args.steps, args.warmup, **options))
+            rows.append({"config": config} | measure(name, path, params, args.device, solver, args.steps, args.warmup,
+                                                     **options))
             r = rows[-1]
-            print(f"{name:16s} {solver:6s} {r['dofs']:6d} DOFs  median {r['step_ms']['median']:8.1f} ms  "
-                  f"p90 {r['step_ms']['p90']:8.1f} ms  ({time.perf_counter() - t0:.0f} s)", flush=True)
+            print(f"{name:16s} {config} {r['solver']:6s} {r['dofs']:6d} DOFs  median {r['step_ms']['median']:8.2f} ms"
+                  f"  p90 {r['step_ms']['p90']:8.2f} ms  its {r['cg_iterations_median']:.0f}  launches "
+                  f"{r['launches_per_step']}  ({time.perf_counter() - t0:.0f} s)", flush=True)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     meta = {"date": date.today().isoformat(), "device": args.device, "machine": platform.processor() or
@@ -115,7 +176,7 @@ def main(argv=None) -> int:
                                                                                      *(argv or sys.argv[1:])])}
     (out / "bench.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
     (out / "bench.md").write_text(f"{meta['date']}, device {meta['device']}, `{meta['command']}`\n\n"
-                                  + markdown(rows, args.compare))
+                                  + markdown(rows))
     print((out / "bench.md").read_text())
     return 0
 

@@ -24,7 +24,7 @@ def main(argv=None) -> int:
     ap.add_argument("scenes", nargs="+")
     ap.add_argument("--devices", nargs="+", default=["cpu"])
     ap.add_argument("--steps", type=int, default=50)
-    ap.add_argument("--solver", default="cg")
+    ap.add_argument("--solver", default="auto")
     ap.add_argument("--param", action="append", default=[])
     ap.add_argument("--out", default="out/devices")
     args = ap.parse_args(argv)

@@ -99,7 +99,7 @@ class RunReport:
             "time": [s.time for s in self.steps],
             "points": self.points,
             "cg": {
-                "tolerance": sim.cg.tolerance if sim.solver_name == "cg" else None,
+                "tolerance": getattr(sim.solver, "tolerance", None),
                 "iterations": [s.cg_iterations for s in self.steps],
                 "residuals": [s.cg_residual for s in self.steps],
                 "converged": [s.converged for s in self.steps],

@@ -72,7 +72,7 @@ def build_scene(path: str | Path, params: dict | None = None) -> Scene:
 
 
 def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: str | Path | None = None,
-        report: str | Path | None = None, solver: str = "cg", tolerance: float = 1e-6, progress: bool = False,
+        report: str | Path | None = None, solver: str = "auto", tolerance: float = 1e-6, progress: bool = False,
         scene_file: str | None = None) -> RunReport:
     """Simulate ``steps`` steps (the scene's default if None), optionally writing USD and a JSON report.
 

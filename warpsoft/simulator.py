@@ -18,10 +18,10 @@ from .constraints.cable import cable_paths
 from .control import Control
 from .errors import SceneError, SimulationError
 from .inverse import solve_inverse
+from .linear import SOLVERS, SystemOperator, choose, make_solver
 from .model import Model, State
 from .resolve import RowInputs, kinematic_jacobian, projected_gauss_seidel
 from .scene import Scene
-from .solvers import BlockJacobi, BlockJacobiCG, SparseDirect, SystemOperator
 
 
 class ConvergenceWarning(UserWarning):
@@ -30,7 +30,16 @@ class ConvergenceWarning(UserWarning):
 
 @dataclass
 class StepStats:
-    """What one step did: solver statistics and the wall time (s) of each stage that ran."""
+    """What one step did: solver statistics and the wall time (s) of each stage that ran.
+
+    Stages: ``linearize`` (rotations, forces, preconditioner or factorization), ``loads`` (only
+    with time-dependent loads), ``free_solve`` (the right-hand side and, with actuators, their
+    compliance columns ``H^T``, solved together in one batched solve), ``compliance``
+    (``delta_free`` and ``W`` from the solved columns), ``resolve`` (the multipliers),
+    ``correct`` (the correction, the update, the health check). ``cg_iterations`` counts the
+    iterations of that one solve (0 for a direct solve); ``compliance_iterations`` is the same
+    count when actuators rode along, else 0.
+    """
 
     index: int
     time: float
@@ -58,29 +67,39 @@ class Simulator:
     Args:
         scene: the scene (or an already built :class:`Model`).
         device: Warp device ("cpu", "cuda", "cuda:0"); Warp's default if None.
-        solver: "cg" (matrix-free block-Jacobi PCG, any device) or "direct" (assembled
-            sparse LU on the host, the CPU alternative and accuracy reference).
+        solver: "auto" (``direct`` on the CPU device, ``pcg`` on CUDA), "pcg" (CG preconditioned
+            by the warped rest factorization, the loop on the device), "direct" (assembled sparse
+            Cholesky on the host, the CPU path and the accuracy reference) or "jacobi" (v1's
+            block-Jacobi CG, kept for comparison). See :mod:`warpsoft.linear`.
         tolerance: CG relative residual |r| / |b|.
         max_iterations: CG iteration cap (reaching it is a warning in the step stats).
         warm_start: start each free solve from the previous step's solution.
         timing: synchronize the device around stages to time them (CUDA only matters).
-        check_every: CG reads its residual back every this many iterations (default: 1 on
-            the CPU, where reading is free; 16 on CUDA, where each read stalls the device).
-        graphs: on CUDA, replay the CG iterations as captured graphs.
+        check_every: ``jacobi`` only: the residual is read back every this many iterations
+            (default: 1 on the CPU, where reading is free; 16 on CUDA).
+        graphs: on CUDA, replay captured graphs (``pcg``: the whole solve; ``jacobi``: runs of
+            ``check_every`` iterations).
+        factorization: ``direct`` only: "cholmod" (default) or "superlu" (v1's).
+        preconditioner: ``pcg`` only: how the warped factorization is applied, "host" (sparse
+            solves), "dense" (a dense inverse on the device) or "auto" (dense on CUDA).
+        precision: ``pcg`` with a dense inverse: "float64" or "float32".
     """
 
-    def __init__(self, scene: Scene | Model, device: str | None = None, solver: str = "cg",
+    def __init__(self, scene: Scene | Model, device: str | None = None, solver: str = "auto",
                  tolerance: float = 1e-6, max_iterations: int = 2000, warm_start: bool = True,
-                 timing: bool = True, check_every: int | None = None, graphs: bool = True):
-        if solver not in ("cg", "direct"):
-            raise SceneError(f"Simulator: solver must be 'cg' or 'direct', got {solver!r}")
+                 timing: bool = True, check_every: int | None = None, graphs: bool = True,
+                 factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float64"):
+        if solver not in SOLVERS:
+            raise SceneError(f"Simulator: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         if not (0.0 < float(tolerance) < 1.0):
             raise SceneError(f"Simulator: tolerance must lie in (0, 1), got {tolerance!r}")
         if int(max_iterations) < 1:
             raise SceneError(f"Simulator: max_iterations must be >= 1, got {max_iterations!r}")
+        if check_every is not None and int(check_every) < 1:
+            raise SceneError(f"Simulator: check_every must be >= 1, got {check_every!r}")
         self.model = scene if isinstance(scene, Model) else Model(scene, device)
         m, d = self.model, self.model.device
-        self.solver_name, self.warm_start, self.timing = solver, bool(warm_start), bool(timing)
+        self.solver_name, self.warm_start, self.timing = choose(solver, d), bool(warm_start), bool(timing)
         self.state, self._next = m.state(), m.state()
         self.time, self.step_index = 0.0, 0
 
@@ -90,8 +109,6 @@ class Simulator:
         self.f_ext = wp.zeros(n, dtype=wp.vec3d, device=d)
         if m.f_const is not None:
             wp.copy(self.f_ext, m.f_const)
-        self.b = wp.zeros((1, n), dtype=wp.vec3d, device=d)
-        self.dx_free = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # the free solve's unknown (warm start)
         self.dx = wp.zeros(n, dtype=wp.vec3d, device=d)
         self._flag = wp.zeros(1, dtype=wp.int32, device=d)
         self._largest_step = wp.zeros(1, dtype=wp.float64, device=d)
@@ -106,22 +123,12 @@ class Simulator:
             self.stiffness_scale = h * h + h * scene_.rayleigh_stiffness
         self.operator = SystemOperator(m, self.rot)
         self.operator.set_scales(self.mass_scale, self.stiffness_scale)
-        if check_every is None:
-            check_every = 16 if d.is_cuda else 1
-        if int(check_every) < 1:
-            raise SceneError(f"Simulator: check_every must be >= 1, got {check_every!r}")
-        cg_options = {"tolerance": tolerance, "max_iterations": max_iterations, "check_every": int(check_every),
-                      "graphs": graphs}
-        if solver == "cg":
-            self.preconditioner = BlockJacobi(self.operator)
-            self.cg = BlockJacobiCG(self.operator, self.preconditioner, 1, **cg_options)
-        else:
-            self.direct = SparseDirect(m)
 
         # constraint rows exist only when the scene declares actuators or effectors
         self.constraints = None
         self.constraint_scale = 1.0 if m.static else h * h  # dx = dx_free + s X lambda, W = s H X
         self.last_W = None
+        na = 0
         if scene_.actuators or scene_.effectors:
             self.constraints = ConstraintSet(m, scene_.cables, scene_.cavities, scene_.effectors)
             na = self.constraints.num_actuators
@@ -129,11 +136,17 @@ class Simulator:
             self._effector_weights = np.concatenate(
                 [np.full(len(e.axes), e.weight) for e in scene_.effectors]) if scene_.effectors else np.zeros(0)
             self.actuator_delta = np.zeros(na)  # delta after the last step (rest: 0)
-            if na:
-                self.columns = wp.zeros((na, n), dtype=wp.vec3d, device=d)
-                self.X = wp.zeros((na, n), dtype=wp.vec3d, device=d)  # A X = H_a^T, warm-started
-                if solver == "cg":
-                    self.compliance_cg = BlockJacobiCG(self.operator, self.preconditioner, na, **cg_options)
+
+        # One batched solve per step: column 0 is the free solve A dx_free = b, columns 1..na the
+        # compliance A X = H_a^T of the actuators (effectors alone need no column). Both are
+        # warm-started from the last step.
+        self.rhs = wp.zeros((1 + na, n), dtype=wp.vec3d, device=d)
+        self.sol = wp.zeros((1 + na, n), dtype=wp.vec3d, device=d)
+        self.b, self.dx_free = self.rhs[0:1], self.sol[0:1]
+        if na:
+            self.columns, self.X = self.rhs[1:], self.sol[1:]
+        self.solver = make_solver(self.solver_name, self.operator, 1 + na, tolerance, max_iterations, graphs,
+                                  check_every, factorization, preconditioner, precision)
 
     # ---- the step ------------------------------------------------------------------------
     def step(self, control: Control | None = None) -> StepStats:
@@ -165,17 +178,14 @@ class Simulator:
             wp.launch(fem.corotational_forces, m.num_elements,
                       inputs=[self.state.q, m.tets, m.dm_inv, m.volume, m.mu, m.lam],
                       outputs=[self.rot, self.f_int], device=d)
-            if self.solver_name == "cg":
-                self.preconditioner.update()
-            else:
-                self.direct.factorize(self.rot, self.mass_scale, self.stiffness_scale)
+            self.solver.prepare()
 
         if m.time_dependent_loads:
             with self._stage(stats, "loads"):
                 f = m.external_forces(stats.time) + (m.f_const_np if m.f_const is not None else 0.0)
                 self.f_ext.assign(f)
 
-        with self._stage(stats, "free_solve"):  # A dx = b
+        with self._stage(stats, "free_solve"):  # A [dx_free, X] = [b, H_a^T]
             if m.static:
                 wp.launch(integrate.rhs_static, m.num_nodes, inputs=[self.f_int, self.f_ext, m.mask],
                           outputs=[self.b[0]], device=d)
@@ -183,11 +193,7 @@ class Simulator:
                 wp.launch(integrate.rhs_dynamic, m.num_nodes,
                           inputs=[self.state.v, m.mass, self.f_int, self.f_ext, m.dt, m.mask],
                           outputs=[self.b[0]], device=d)
-            self._solve(self.b, self.dx_free, self.cg if self.solver_name == "cg" else None, stats, "free solve")
-        dx = self.dx_free[0]
-
-        if cs is not None and cs.num_actuators:  # effectors alone need no solve: they are measured after it
-            with self._stage(stats, "compliance"):  # delta_free = delta(q) + H dx_free; A X = H^T, W = s H X
+            if cs is not None and cs.num_actuators:  # effectors alone need no column: they are measured after
                 # Rows are linearized where A is, at q. Evaluated at the free configuration
                 # instead, H lets a follower load (a pressure) gain energy step after step (the
                 # pneunet oscillated ever wider), and delta(q_free) misses the imposed
@@ -196,10 +202,13 @@ class Simulator:
                 if m.scene.inverse:
                     cs.set_time(stats.time)  # effector rows measure x - target
                 cs.evaluate(self.state.q)
-                delta_free = cs.delta.numpy() + cs.linear_change(self.dx_free)
                 cs.actuator_columns(self.columns)
-                cg = self.compliance_cg if self.solver_name == "cg" else None
-                stats.compliance_iterations = self._solve(self.columns, self.X, cg, stats, "compliance solve")
+            self._solve(stats)
+        dx = self.dx_free[0]
+
+        if cs is not None and cs.num_actuators:
+            with self._stage(stats, "compliance"):  # delta_free = delta(q) + H dx_free; W = s H X
+                delta_free = cs.delta.numpy() + cs.linear_change(self.dx_free)
                 self.last_W = cs.compliance(self.X, self.constraint_scale)
             with self._stage(stats, "resolve"):  # lambda from the direct or the inverse model
                 na, eff = cs.num_actuators, cs.effector_row_slice
@@ -248,26 +257,24 @@ class Simulator:
         return stats
 
     # ---- helpers -------------------------------------------------------------------------
-    def _solve(self, b: wp.array, x: wp.array, cg: BlockJacobiCG | None, stats: StepStats, what: str) -> int:
-        """``A x = b`` for the columns of ``b`` by CG (warm start ``x``) or the direct factorization."""
-        if cg is None:
-            x.assign(self.direct.solve(b.numpy()))
-            return 0
+    def _solve(self, stats: StepStats) -> None:
+        """``A sol = rhs`` for every column (warm start: the last step's ``sol``)."""
+        na = self.rhs.shape[0] - 1
+        what = "free solve" if na == 0 else f"free solve and {na} compliance column{'s' if na > 1 else ''}"
         if not self.warm_start:
-            x.zero_()
-        res = cg.solve(b, x)
+            self.sol.zero_()
+        res = self.solver.solve(self.rhs, self.sol)
         if not math.isfinite(res.residual):
             raise SimulationError(f"step {stats.index} (t = {stats.time:g} s): the {what} met non-finite values "
                                   "(NaN or inf in the state, loads or rows); the state before the step is kept")
-        if what == "free solve":
-            stats.cg_iterations, stats.cg_residual = res.iterations, res.residual
-        stats.converged = stats.converged and res.converged
+        stats.cg_iterations, stats.cg_residual = res.iterations, res.residual
+        stats.compliance_iterations = res.iterations if na else 0
+        stats.converged = res.converged
         if not res.converged:
             msg = (f"step {stats.index}: CG ({what}) stopped after {res.iterations} iterations at relative residual "
-                   f"{res.residual:.3e} > tolerance {cg.tolerance:.1e}")
+                   f"{res.residual:.3e} > tolerance {self.solver.tolerance:.1e}")
             stats.warnings.append(msg)
             warnings.warn(msg, ConvergenceWarning, stacklevel=3)
-        return res.iterations
 
     def _row_inputs(self, t: float, control: Control | None) -> RowInputs:
         acts = self.constraints.actuators
@@ -325,9 +332,7 @@ class Simulator:
 
     def _forget_warm_starts(self) -> None:
         """A poisoned warm start would spoil the next attempt."""
-        self.dx_free.zero_()
-        if self.constraints is not None and self.constraints.num_actuators:
-            self.X.zero_()
+        self.sol.zero_()
 
     def _check_health(self, stats: StepStats, dx: wp.array) -> None:
         self._flag.zero_()
