@@ -1,45 +1,93 @@
-"""Point location: barycentric coordinates of material points inside tetrahedra (host side)."""
+"""Point location: barycentric coordinates of material points in tetrahedra (host side).
+
+A point inside the mesh gets the element that contains it. A point just outside (SoftRobots'
+own scenes put cable points 0.1-0.5 mm outside their meshes, and SOFA maps them) gets the
+nearest element and extrapolated weights (the unclipped barycentric coordinates: they still
+sum to 1, so the point follows that element's affine motion exactly), provided it lies
+within ``outside`` times that element's mean edge length; farther is an error that says how
+far. Candidate elements come from a KD-tree of element centroids (SciPy), not from a solve
+against every element; the full scan runs only when no candidate is close enough.
+"""
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .errors import SceneError
 
+CANDIDATES = 32  # nearest element centroids tried per point before a full scan
+OUTSIDE = 0.5  # default tolerance outside the mesh, in mean edge lengths of the nearest element
+
 
 def barycentric(nodes: np.ndarray, tets: np.ndarray, point: np.ndarray) -> np.ndarray:
-    """Barycentric coordinates of ``point`` (m) in every element, shape ``(m, 4)``."""
+    """Barycentric coordinates of ``point`` (m) in every element of ``tets``, shape ``(m, 4)``."""
     x = nodes[tets]
     Dm = np.stack([x[:, 1] - x[:, 0], x[:, 2] - x[:, 0], x[:, 3] - x[:, 0]], axis=2)
     l123 = np.linalg.solve(Dm, (point - x[:, 0])[:, :, None])[:, :, 0]
     return np.concatenate([1.0 - l123.sum(axis=1, keepdims=True), l123], axis=1)
 
 
-def locate(nodes: np.ndarray, tets: np.ndarray, points: np.ndarray, names: list[str],
-           tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
-    """Find, for each point, an element containing it and its barycentric weights.
+def _outside_distance(nodes: np.ndarray, tet: np.ndarray, lam: np.ndarray, point: np.ndarray) -> float:
+    """Distance (m) from ``point`` to the element's point with clipped, renormalized weights
+    (zero inside; an upper bound of the distance to the element outside)."""
+    w = np.clip(lam, 0.0, None)
+    return float(np.linalg.norm(point - (w / w.sum()) @ nodes[tet]))
+
+
+def _mean_edge(nodes: np.ndarray, tet: np.ndarray) -> float:
+    x = nodes[tet]
+    pairs = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+    return float(np.mean([np.linalg.norm(x[a] - x[b]) for a, b in pairs]))
+
+
+def locate(nodes: np.ndarray, tets: np.ndarray, points: np.ndarray, names: list[str], tol: float = 1e-6,
+           outside: float = OUTSIDE) -> tuple[np.ndarray, np.ndarray]:
+    """Find, for each point, its element and barycentric weights.
 
     Args:
         nodes: ``(n, 3)`` rest positions (m); tets: ``(m, 4)`` node ids.
         points: ``(p, 3)`` points (m); names: their labels for errors.
         tol: how far outside an element (in barycentric units) still counts as inside.
+        outside: how far outside the mesh a point may lie, in mean edge lengths of its
+            nearest element (0: points must be inside).
 
     Returns:
-        ``(node_ids, weights)``, shapes ``(p, 4)`` int32 and ``(p, 4)`` float64.
+        ``(node_ids, weights)``, shapes ``(p, 4)`` int32 and ``(p, 4)`` float64; weights sum to 1
+        (negative ones extrapolate, for points outside the mesh).
 
     Raises:
-        SceneError: naming the first point that lies outside every element.
+        SceneError: naming the first point farther outside than allowed, with its distance.
     """
+    tets = np.asarray(tets)
+    centroids = nodes[tets].mean(axis=1)
+    tree = cKDTree(centroids)
+    k = min(CANDIDATES, len(tets))
     ids = np.zeros((len(points), 4), dtype=np.int32)
     weights = np.zeros((len(points), 4))
-    for k, (p, name) in enumerate(zip(points, names, strict=True)):
-        lam = barycentric(nodes, tets, np.asarray(p, dtype=float))
+    for j, (p, name) in enumerate(zip(points, names, strict=True)):
+        p = np.asarray(p, dtype=float)
+        _, cand = tree.query(p, k=k)
+        cand = np.atleast_1d(cand)
+        lam = barycentric(nodes, tets[cand], p)
         worst = lam.min(axis=1)
-        e = int(np.argmax(worst))
-        if worst[e] < -tol:
-            d = np.min(np.linalg.norm(nodes - p, axis=1))
-            raise SceneError(f"point '{name}' at {np.asarray(p).tolist()} m lies outside every element "
-                             f"(nearest node {d:.3g} m away)")
-        w = np.clip(lam[e], 0.0, None)
-        ids[k], weights[k] = tets[e], w / w.sum()
+        best = int(np.argmax(worst))
+        if worst[best] < -tol:  # no candidate holds it: look at every element before extrapolating
+            cand = np.arange(len(tets))
+            lam = barycentric(nodes, tets, p)
+            worst = lam.min(axis=1)
+            best = int(np.argmax(worst))
+        e = int(cand[best])
+        if worst[best] >= -tol:
+            w = np.clip(lam[best], 0.0, None)
+            ids[j], weights[j] = tets[e], w / w.sum()
+            continue
+        # outside every element: the element it is least outside of, within the tolerance
+        distance = _outside_distance(nodes, tets[e], lam[best], p)
+        allowed = outside * _mean_edge(nodes, tets[e])
+        if distance > allowed:
+            raise SceneError(f"point '{name}' at {p.tolist()} m lies outside every element: {distance:.3g} m "
+                             f"from the nearest one, more than the {allowed:.3g} m allowed ({outside:g} of its "
+                             f"mean edge length)")
+        ids[j], weights[j] = tets[e], lam[best]
     return ids, weights
