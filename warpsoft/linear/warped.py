@@ -104,7 +104,10 @@ class WarpedFactor:
             free = self.assembly.free
             dense = np.zeros((self.padded, self.padded))
             dense[np.ix_(free, free)] = self.factor.solve(np.eye(len(free)))
-            self.inverse = wp.array(dense, dtype=self.dtype, device=m.device)
+            if self.inverse is None:
+                self.inverse = wp.array(dense, dtype=self.dtype, device=m.device)
+            else:  # in place: a captured solve graph holds this buffer's address
+                self.inverse.assign(dense.astype(np.float64 if self.dtype == wp.float64 else np.float32))
         self.refreshes += 1
         self._baseline, self._stale = None, False
 
