@@ -127,3 +127,12 @@ class SuperLUFactor:
 
 
 FACTORIZATIONS = {"cholmod": CholmodFactor, "superlu": SuperLUFactor}
+
+
+def solve_dofs(factor: CholmodFactor | SuperLUFactor, flat: np.ndarray) -> np.ndarray:
+    """``A^-1`` applied to ``flat`` ``(k, 3 n)`` over the model's DOFs: gather the free DOFs,
+    solve, scatter back; fixed DOFs get 0."""
+    free = factor.assembly.free
+    out = np.zeros_like(flat)
+    out[:, free] = factor.solve(np.ascontiguousarray(flat[:, free].T)).T
+    return out

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from .assembly import FACTORIZATIONS, Assembly
+from .assembly import FACTORIZATIONS, Assembly, solve_dofs
 from .operator import SystemOperator
 from .pcg import SolveResult
 
@@ -43,9 +43,4 @@ class SparseDirect:
 
     def solve_array(self, b: np.ndarray) -> np.ndarray:
         """Solve for right-hand sides ``(k, n, 3)`` (host arrays); fixed DOFs get 0."""
-        k = b.shape[0]
-        flat = b.reshape(k, -1)
-        x = np.zeros_like(flat)
-        free = self.assembly.free
-        x[:, free] = self.factor.solve(np.ascontiguousarray(flat[:, free].T)).T
-        return x.reshape(b.shape)
+        return solve_dofs(self.factor, b.reshape(b.shape[0], -1)).reshape(b.shape)

@@ -24,7 +24,7 @@ import warp as wp
 
 from warpsoft.kernels import warped as kernels
 
-from .assembly import Assembly, CholmodFactor
+from .assembly import Assembly, CholmodFactor, solve_dofs
 from .operator import SystemOperator
 
 MODES = ("auto", "host", "dense")
@@ -129,9 +129,5 @@ class WarpedFactor:
             wp.launch(self._rotate_out, shape, inputs=[self.y, self.q_rot, m.mask], outputs=[z], device=d)
             return
         wp.launch(kernels.rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
-        free = self.assembly.free
-        flat = self.u.numpy().reshape(shape[0], -1)
-        out = np.zeros_like(flat)
-        out[:, free] = self.factor.solve(np.ascontiguousarray(flat[:, free].T)).T
-        self.y.assign(out.reshape(shape[0], -1, 3))
+        self.y.assign(solve_dofs(self.factor, self.u.numpy().reshape(shape[0], -1)).reshape(shape[0], -1, 3))
         wp.launch(kernels.rotate_out, shape, inputs=[self.y, self.q_rot, m.mask], outputs=[z], device=d)
