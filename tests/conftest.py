@@ -6,7 +6,7 @@ import pytest
 import warp as wp
 
 import warpsoft as ws  # noqa: F401  (sets Warp's log level)
-from warpsoft.runner import load_scene_module
+from warpsoft.io.runner import load_scene_module
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT.parent / "shared" / "reference" / "softrobots"

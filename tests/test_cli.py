@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from warpsoft.cli import main
+from warpsoft.io.cli import main
 
 from .conftest import ROOT
 
@@ -61,7 +61,7 @@ def test_unknown_parameter_and_missing_file_are_clear_errors(tmp_path, capsys):
 
 
 def test_param_values_are_python_or_json_literals():
-    from warpsoft.runner import parse_params
+    from warpsoft.io.runner import parse_params
 
     p = parse_params(["target=[0,0,0.1]", "mode=inverse", "flag=true", "n=3", "d={'a': 1}"])
     assert p == {"target": [0, 0, 0.1], "mode": "inverse", "flag": True, "n": 3, "d": {"a": 1}}

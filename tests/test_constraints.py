@@ -49,7 +49,7 @@ def test_lambda_as_external_force_agrees_with_X_lambda(static):
     scene = cable_beam()
     scene.static = static
     sim, _ = run(scene, 1, tolerance=1e-12)
-    cs = sim.constraints
+    cs = sim.rows
     cs.evaluate(wp.clone(sim.model.rest))  # H where the step linearized: the rest state
     lam = np.zeros(cs.num_rows)
     lam[:3] = sim.lam
@@ -133,7 +133,7 @@ def test_kinematic_jacobian_matches_finite_differences():
 
 def test_cavity_row_is_the_volume_gradient(scene_module):
     sim = ws.Simulator(scene_module("scenes/validation/pressure_sphere.py").build(mesh_size=0.004))
-    cs, rng = sim.constraints, np.random.default_rng(1)
+    cs, rng = sim.rows, np.random.default_rng(1)
     q0 = sim.model.rest_np + 2e-4 * rng.standard_normal(sim.model.rest_np.shape)
     direction = rng.standard_normal(q0.shape)
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import warpsoft as ws
-from warpsoft.mesh import signed_volumes
+from warpsoft.scene.mesh import signed_volumes
 
 L, W, H = 0.04, 0.01, 0.01
 RUBBER = ws.Material(1e5, 0.3, 1000.0)

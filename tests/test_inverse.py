@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 
 import warpsoft as ws
-from warpsoft.inverse import inverse_hessian, solve_inverse
-from warpsoft.resolve import RowInputs
+from warpsoft.resolve import RowInputs, inverse_hessian, solve_inverse
 
 
 def run(scene, steps):
@@ -32,7 +31,7 @@ def test_round_trip_direct_then_inverse_reaches_the_target(scene_module):
 def test_redundant_trunk_is_unique_and_smooth(scene_module):
     trunk = scene_module("scenes/trunk.py").build(mesh_size=0.009, period=2.0, static=True, gravity=0.0)
     sim, history = run(trunk, 60)
-    cs, W = sim.constraints, sim.last_W
+    cs, W = sim.rows, sim.last_W
     task = W[cs.effector_row_slice].T @ W[cs.effector_row_slice]
     assert np.linalg.matrix_rank(task, tol=1e-9 * np.abs(task).max()) <= 4  # 8 cables, 4 effector axes: redundant
     P = inverse_hessian(W[:8], W[cs.effector_row_slice], np.ones(4))

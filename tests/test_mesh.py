@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import warpsoft as ws
-from warpsoft.mesh import signed_volumes
+from warpsoft.scene.mesh import signed_volumes
 
 
 def surface_closed_and_outward(mesh: ws.TetMesh) -> tuple[bool, float]:

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from warpsoft import Simulator
-from warpsoft.runner import build_scene
+from warpsoft.io.runner import build_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 BUDGET = 0.05  # relative error the recommended default must stay within

@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from warpsoft import Simulator
-from warpsoft.report import percentiles
-from warpsoft.runner import build_scene
+from warpsoft.io.report import percentiles
+from warpsoft.io.runner import build_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -94,7 +94,7 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
         sim.step()
     if graph is not None:
         sim.solver.graph = graph
-    m, cs = sim.model, sim.constraints
+    m, cs = sim.model, sim.rows
     stages = sorted({k for s in stats for k in s.stages})
     d = wp.get_device(device)
     peak = wp.get_mempool_used_mem_high(d) if d.is_cuda and wp.is_mempool_enabled(d) else None

@@ -15,8 +15,8 @@ import numpy as np
 import warp as wp
 
 from warpsoft import Simulator
+from warpsoft.io.runner import build_scene
 from warpsoft.linear import WarpedFactor
-from warpsoft.runner import build_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 VARIANTS = [(32, 64, 128), (16, 64, 128), (8, 64, 64), (8, 128, 128), (4, 128, 64), (16, 128, 256)]

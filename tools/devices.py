@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from warpsoft.runner import build_scene, parse_params, run
+from warpsoft.io.runner import build_scene, parse_params, run
 
 
 def main(argv=None) -> int:

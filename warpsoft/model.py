@@ -1,29 +1,27 @@
-"""Model (device arrays built once from a Scene) and State (positions, velocities)."""
+"""Model: the device arrays of one or more worlds, built once by :func:`finalize`.
+
+A world is one scene: a robot or a design variant. Worlds may differ in everything (mesh,
+material, fixtures, actuators, effectors, loads); they share the time step, whether the step is
+quasi-static, and the Rayleigh damping, because they advance together. Arrays are concatenated
+over worlds; ``world_node_start`` and ``world_elem_start`` (length worlds + 1) say where each
+world's nodes and elements sit, ``node_world`` and ``elem_world`` give the world of each.
+Element node ids are global, so element kernels need no world bookkeeping.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
 
-from warpsoft.kernels import fem
+from warpsoft.kernels.elastic import geometry
 
 from .errors import SceneError
 from .mapping import locate
 from .scene import Scene, load_weights
-
-
-@dataclass
-class State:
-    """Per-step state: positions ``q`` and velocities ``v``, each ``(n,)`` of vec3d (m, m/s)."""
-
-    q: wp.array
-    v: wp.array
-
-    def positions(self) -> np.ndarray:
-        """A copy of the positions as a ``(n, 3)`` NumPy array (m)."""
-        return self.q.numpy().copy()
+from .state import State
 
 
 @dataclass
@@ -31,6 +29,7 @@ class BodyInfo:
     """Where a body's nodes and elements sit in the model's arrays."""
 
     name: str
+    world: int
     node_start: int
     node_count: int
     elem_start: int
@@ -38,107 +37,158 @@ class BodyInfo:
     surface: np.ndarray  # (k, 3) global node ids, outward triangles
 
 
-class Model:
-    """Everything fixed over a run, on one device.
+def finalize(scenes: Scene | Sequence[Scene], device: str | None = None) -> Model:
+    """Build the device-side :class:`Model` of one scene, or of several (one world each)."""
+    return Model(scenes, device)
 
-    Arrays (device): ``rest`` (n vec3d, m), ``tets`` (m vec4i), ``dm_inv`` (m mat33d, 1/m),
-    ``volume`` (m float64, m^3), ``mu``/``lam`` (m float64, Pa), ``mass`` (n float64, kg; only
-    in dynamic scenes or under gravity, else None), ``mask`` (n vec3d, 1 = free, 0 = fixed), ``f_const`` (n vec3d, N:
-    gravity and constant loads; None when there are none), probe ``probe_nodes`` /
-    ``probe_weights``.
+
+class Model:
+    """Everything fixed over a run, on one device, for every world.
+
+    Arrays (device): ``rest`` (n vec3d, m), ``tets`` (m vec4i, global node ids), ``dm_inv``
+    (m mat33d, 1/m), ``volume`` (m float64, m^3), ``mu``/``lam`` (m float64, Pa), ``mass`` (n
+    float64, kg; only when some world is dynamic or under gravity, else None), ``mask`` (n vec3d,
+    1 = free, 0 = fixed), ``f_const`` (n vec3d, N: gravity and constant loads; None when there are
+    none), ``node_world`` (n int32), ``elem_world`` (m int32), probe ``probe_nodes`` /
+    ``probe_weights``. Host: ``world_node_start``, ``world_elem_start`` (worlds + 1), the same
+    arrays with an ``_np`` suffix.
     """
 
-    def __init__(self, scene: Scene, device: str | None = None):
-        scene.validate()
-        self.scene = scene
+    def __init__(self, scenes: Scene | Sequence[Scene], device: str | None = None):
+        self.scenes = [scenes] if isinstance(scenes, Scene) else list(scenes)
+        if not self.scenes or not all(isinstance(s, Scene) for s in self.scenes):
+            raise SceneError(f"finalize: expected a Scene or a non-empty list of Scenes, got {scenes!r:.80}")
+        for s in self.scenes:
+            s.validate()
+        first = self.scenes[0]
+        for w, s in enumerate(self.scenes[1:], 1):
+            for attr in ("dt", "static", "rayleigh_mass", "rayleigh_stiffness"):
+                if getattr(s, attr) != getattr(first, attr):
+                    raise SceneError(f"finalize: world {w} (scene '{s.name}') has {attr} = {getattr(s, attr)!r}, "
+                                     f"world 0 (scene '{first.name}') {getattr(first, attr)!r}: worlds step "
+                                     "together and must share it")
+        self.num_worlds = len(self.scenes)
         self.device = wp.get_device(device)
+        self.static, self.dt = first.static, first.dt
+        self.rayleigh_mass, self.rayleigh_stiffness = first.rayleigh_mass, first.rayleigh_stiffness
+
         nodes, tets, mu, lam, rho, self.bodies = [], [], [], [], [], []
+        node_starts, elem_starts = [0], [0]
         n0 = e0 = 0
-        for body in scene.bodies:
-            m = body.mesh
-            nodes.append(m.nodes)
-            tets.append(m.tets + n0)
-            bm, bl, br = body.element_materials()
-            mu.append(bm)
-            lam.append(bl)
-            rho.append(br)
-            self.bodies.append(BodyInfo(body.name, n0, m.num_nodes, e0, m.num_elements, m.surface() + n0))
-            n0 += m.num_nodes
-            e0 += m.num_elements
+        for w, scene in enumerate(self.scenes):
+            for body in scene.bodies:
+                m = body.mesh
+                nodes.append(m.nodes)
+                tets.append(m.tets + n0)
+                bm, bl, br = body.element_materials()
+                mu.append(bm)
+                lam.append(bl)
+                rho.append(br)
+                self.bodies.append(BodyInfo(body.name, w, n0, m.num_nodes, e0, m.num_elements, m.surface() + n0))
+                n0 += m.num_nodes
+                e0 += m.num_elements
+            node_starts.append(n0)
+            elem_starts.append(e0)
+        self.world_node_start = np.array(node_starts, dtype=np.int32)
+        self.world_elem_start = np.array(elem_starts, dtype=np.int32)
         self.rest_np = np.concatenate(nodes)
         self.tets_np = np.concatenate(tets).astype(np.int32)
         self.num_nodes, self.num_elements = len(self.rest_np), len(self.tets_np)
-        self.static = scene.static
-        self.dt = scene.dt
+        self.node_world_np = np.repeat(np.arange(self.num_worlds, dtype=np.int32), np.diff(self.world_node_start))
+        self.elem_world_np = np.repeat(np.arange(self.num_worlds, dtype=np.int32), np.diff(self.world_elem_start))
 
         d = self.device
         self.rest = wp.array(self.rest_np, dtype=wp.vec3d, device=d)
         self.tets = wp.array(self.tets_np, dtype=wp.vec4i, device=d)
+        self.node_world = wp.array(self.node_world_np, dtype=wp.int32, device=d)
+        self.elem_world = wp.array(self.elem_world_np, dtype=wp.int32, device=d)
         self.mu = wp.array(np.concatenate(mu), dtype=wp.float64, device=d)
         self.lam = wp.array(np.concatenate(lam), dtype=wp.float64, device=d)
         self.dm_inv = wp.zeros(self.num_elements, dtype=wp.mat33d, device=d)
         self.volume = wp.zeros(self.num_elements, dtype=wp.float64, device=d)
-        wp.launch(fem.tet_rest_shape, self.num_elements, inputs=[self.rest, self.tets],
+        wp.launch(geometry.tet_rest_shape, self.num_elements, inputs=[self.rest, self.tets],
                   outputs=[self.dm_inv, self.volume], device=d)
 
-        # mass exists whenever something needs it: inertia (dynamic) or gravity
-        self.has_gravity = bool(np.any(scene.gravity != 0.0))
+        # gravity per node: each world its own
+        g = np.array([s.gravity for s in self.scenes])[self.node_world_np]  # (n, 3) m/s^2
+        self.has_gravity = bool(np.any(g != 0.0))
         self.mass = None
-        if not self.static or self.has_gravity:
+        if not self.static or self.has_gravity:  # mass exists whenever something needs it
             density = wp.array(np.concatenate(rho), dtype=wp.float64, device=d)
             self.mass = wp.zeros(self.num_nodes, dtype=wp.float64, device=d)
-            wp.launch(fem.lumped_mass, self.num_elements, inputs=[self.tets, self.volume, density],
+            wp.launch(geometry.lumped_mass, self.num_elements, inputs=[self.tets, self.volume, density],
                       outputs=[self.mass], device=d)
             self.mass_np = self.mass.numpy()
             if not self.static and np.any(self.mass_np <= 0):
                 i = int(np.argmin(self.mass_np))
-                raise SceneError(f"scene '{scene.name}': node {i} has no mass ({self.mass_np[i]} kg) in a "
-                                 "dynamic scene; give every element a density > 0")
+                w = int(self.node_world_np[i])
+                raise SceneError(f"scene '{self.scenes[w].name}': node {i - node_starts[w]} has no mass "
+                                 f"({self.mass_np[i]} kg) in a dynamic scene; give every element a density > 0")
 
         mask = np.ones((self.num_nodes, 3))
-        for fx in scene.fixtures:
-            info = self.body_info(fx.body.name)
-            sel = np.flatnonzero(fx.region(fx.body.mesh.nodes)) + info.node_start
-            for a in fx.axes:
-                mask[sel, "xyz".index(a)] = 0.0
+        self.load_weights = []  # (load, global node ids, weights) of every load
+        for w, scene in enumerate(self.scenes):
+            for fx in scene.fixtures:
+                info = self.body_info(fx.body.name, w)
+                sel = np.flatnonzero(fx.region(fx.body.mesh.nodes)) + info.node_start
+                for a in fx.axes:
+                    mask[sel, "xyz".index(a)] = 0.0
+            for load in scene.loads:
+                wts = load_weights(load)
+                ids = np.flatnonzero(wts)
+                self.load_weights.append((load, ids + self.body_info(load.body.name, w).node_start, wts[ids]))
         self.mask_np = mask
         self.mask = wp.array(mask, dtype=wp.vec3d, device=d)
         self.num_fixed_dofs = int((mask == 0).sum())
 
-        self.load_weights = []  # (load, global node ids, weights) of every load
-        for load in scene.loads:
-            info = self.body_info(load.body.name)
-            w = load_weights(load)
-            ids = np.flatnonzero(w)
-            self.load_weights.append((load, ids + info.node_start, w[ids]))
         self.time_dependent_loads = [lw for lw in self.load_weights if callable(lw[0].total)]
         f_const = np.zeros((self.num_nodes, 3))
         if self.has_gravity:
-            f_const += self.mass_np[:, None] * scene.gravity[None, :]
-        for load, ids, w in self.load_weights:
+            f_const += self.mass_np[:, None] * g
+        for load, ids, wts in self.load_weights:
             if not callable(load.total):
-                f_const[ids] += w[:, None] * load.total[None, :]
+                f_const[ids] += wts[:, None] * load.total[None, :]
         has_const = self.has_gravity or len(self.load_weights) > len(self.time_dependent_loads)
         self.f_const_np = f_const
         self.f_const = wp.array(f_const, dtype=wp.vec3d, device=d) if has_const else None
 
-        self.probe_names = [p.name for p in scene.probes]
+        # probes: located in their own world's elements
+        self.probe_names, self.probe_world, ids, wts = [], [], [], []
+        for w, scene in enumerate(self.scenes):
+            if scene.probes:
+                lo, hi = self.world_elem_start[w], self.world_elem_start[w + 1]
+                names = [p.name for p in scene.probes]
+                i_, w_ = locate(self.rest_np, self.tets_np[lo:hi], np.array([p.point for p in scene.probes]), names)
+                self.probe_names += names
+                self.probe_world += [w] * len(names)
+                ids.append(i_)
+                wts.append(w_)
         self.probe_nodes = self.probe_weights = None
-        if scene.probes:
-            ids, w = locate(self.rest_np, self.tets_np, np.array([p.point for p in scene.probes]), self.probe_names)
-            self.probe_nodes = wp.array(ids, dtype=wp.vec4i, device=d)
-            self.probe_weights = wp.array(w, dtype=wp.vec4d, device=d)
+        if ids:
+            self.probe_nodes = wp.array(np.concatenate(ids), dtype=wp.vec4i, device=d)
+            self.probe_weights = wp.array(np.concatenate(wts), dtype=wp.vec4d, device=d)
+
+    @property
+    def scene(self) -> Scene:
+        """The scene of a one-world model (a model of several worlds has ``scenes``)."""
+        if self.num_worlds != 1:
+            raise SceneError(f"model: it has {self.num_worlds} worlds; use model.scenes[world]")
+        return self.scenes[0]
 
     @property
     def num_dofs(self) -> int:
         """Number of degrees of freedom, fixed ones included (3 per node)."""
         return 3 * self.num_nodes
 
-    def body_info(self, name: str) -> BodyInfo:
+    def world_nodes(self, world: int) -> slice:
+        """The nodes of ``world`` in the concatenated arrays."""
+        return slice(int(self.world_node_start[world]), int(self.world_node_start[world + 1]))
+
+    def body_info(self, name: str, world: int = 0) -> BodyInfo:
         for b in self.bodies:
-            if b.name == name:
+            if b.name == name and b.world == world:
                 return b
-        raise SceneError(f"model: no body named '{name}'")
+        raise SceneError(f"model: no body named '{name}' in world {world}")
 
     def state(self) -> State:
         """A new state at rest (positions = rest positions, zero velocity)."""

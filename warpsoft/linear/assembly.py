@@ -18,8 +18,6 @@ import numpy as np
 import scipy.sparse as sp
 import warp as wp
 
-from warpsoft.kernels import fem
-
 from .operator import SystemOperator
 
 
@@ -62,9 +60,8 @@ class Assembly:
 
     def values(self) -> np.ndarray:
         """The ``nnz`` values of the lower triangle at the operator's current rotations and scales."""
-        op, m = self.op, self.op.model
-        wp.launch(fem.stiffness_blocks, m.num_elements, inputs=[m.dm_inv, m.volume, m.mu, m.lam, op.rot],
-                  outputs=[self.blocks], device=m.device)
+        op = self.op
+        op.elastic.blocks(op.rot, self.blocks)
         blocks = self.blocks.numpy().reshape(-1)
         vals = op.stiffness_scale * np.bincount(self.slot, weights=blocks[self.keep], minlength=self.nnz)
         if op.mass_scale != 0.0:

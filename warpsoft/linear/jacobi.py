@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warpsoft.kernels import fem, linalg
+from warpsoft.kernels.linear import cg as linalg
 
 from .operator import SystemOperator
 
@@ -32,8 +32,7 @@ class BlockJacobi:
     def update(self) -> None:
         m, op = self.op.model, self.op
         self.kdiag.zero_()
-        wp.launch(fem.stiffness_diagonal, m.num_elements, inputs=[m.tets, m.dm_inv, m.volume, m.mu, m.lam, op.rot],
-                  outputs=[self.kdiag], device=m.device)
+        op.elastic.diagonal(op.rot, self.kdiag)
         wp.launch(linalg.block_jacobi_inverse, m.num_nodes,
                   inputs=[self.kdiag, self._mass, op.mass_scale, op.stiffness_scale, m.mask],
                   outputs=[self.inverse], device=m.device)
@@ -73,12 +72,14 @@ class BlockJacobiCG:
         m = operator.model
         shape = (int(columns), m.num_nodes)
         self.r, self.z, self.p, self.ap = (wp.zeros(shape, dtype=wp.vec3d, device=m.device) for _ in range(4))
-        self.scal = wp.zeros((shape[0], linalg.NUM_SCALARS), dtype=wp.float64, device=m.device)
+        # v1's solver for comparison: one system, whatever the worlds (one world id for all nodes)
+        self.one_world = wp.zeros(m.num_nodes, dtype=wp.int32, device=m.device)
+        self.scal = wp.zeros((shape[0], 1, linalg.NUM_SCALARS), dtype=wp.float64, device=m.device)
 
     def _relative(self) -> float:
         """Largest relative residual over the columns; NaN if any ``b`` or ``r`` is not finite."""
         s = self.scal.numpy()
-        b2, r2 = s[:, linalg.B2], s[:, linalg.R2_LAST]
+        b2, r2 = s[:, 0, linalg.B2], s[:, 0, linalg.R2_LAST]
         if not (np.all(np.isfinite(b2)) and np.all(np.isfinite(r2))):
             return math.nan
         b = np.sqrt(b2)
@@ -97,9 +98,10 @@ class BlockJacobiCG:
         wp.launch(linalg.project, shape, inputs=[m.mask], outputs=[x], device=d)
         self.op.apply(x, self.ap)
         self.scal.zero_()
-        wp.launch(linalg.cg_start, shape, inputs=[b, self.ap, m.mask, pre], outputs=[self.r, self.z, self.p, self.scal],
+        wp.launch(linalg.cg_start, shape, inputs=[b, self.ap, m.mask, pre, self.r, self.z, self.p, self.one_world],
+                  outputs=[self.scal],
                   device=d)
-        wp.launch(linalg.cg_clear_zero_columns, shape, inputs=[self.scal], outputs=[x, self.p], device=d)
+        wp.launch(linalg.cg_clear_zero_columns, shape, inputs=[self.one_world, self.scal, x, self.p], device=d)
         rel = self._relative()
         it = 0
         while rel > self.tolerance and math.isfinite(rel) and it < self.max_iterations:
@@ -123,8 +125,10 @@ class BlockJacobiCG:
         """One CG iteration, all on the device: ``A p``, ``alpha``, ``x``, ``r``, ``z``, ``beta``, ``p``."""
         m, d, shape = self.op.model, self.op.model.device, self.r.shape
         self.op.apply(self.p, self.ap)
-        wp.launch(linalg.cg_curvature, shape, inputs=[self.p, self.ap, m.mask], outputs=[self.scal], device=d)
-        wp.launch(linalg.cg_update, shape, inputs=[x, self.r, self.z, self.p, self.ap, self.precond.inverse],
+        wp.launch(linalg.cg_curvature, shape, inputs=[self.p, self.ap, m.mask, self.one_world], outputs=[self.scal],
+                  device=d)
+        wp.launch(linalg.cg_update, shape,
+                  inputs=[x, self.r, self.z, self.p, self.ap, self.precond.inverse, self.one_world],
                   outputs=[self.scal], device=d)
-        wp.launch(linalg.cg_scalars, shape[0], inputs=[self.scal], device=d)
-        wp.launch(linalg.cg_direction, shape, inputs=[self.z, self.p], outputs=[self.scal], device=d)
+        wp.launch(linalg.cg_scalars, self.scal.shape[:2], inputs=[self.scal], device=d)
+        wp.launch(linalg.cg_direction, shape, inputs=[self.z, self.p, self.one_world, self.scal], device=d)

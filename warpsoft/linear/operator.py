@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import warp as wp
 
-from warpsoft.kernels import fem, linalg
+from warpsoft.kernels.linear import cg as linalg
 
+from ..elastic import element_model
 from ..model import Model
 
 
@@ -13,11 +14,13 @@ class SystemOperator:
     """``y[c] = mass_scale M x[c] + stiffness_scale K(rot) x[c]`` for the model's elements.
 
     ``rot`` (m mat33d) holds the element rotations of the current linearization;
-    ``x`` and ``y`` are ``(k, n)`` arrays of vec3d.
+    ``x`` and ``y`` are ``(k, n)`` arrays of vec3d. ``elastic`` is the element model (the
+    model's corotational one by default).
     """
 
-    def __init__(self, model: Model, rot: wp.array):
+    def __init__(self, model: Model, rot: wp.array, elastic=None):
         self.model, self.rot = model, rot
+        self.elastic = elastic if elastic is not None else element_model(model)
         self.mass_scale = 0.0
         self.stiffness_scale = 1.0
 
@@ -33,6 +36,4 @@ class SystemOperator:
                       device=m.device)
         else:
             y.zero_()
-        wp.launch(fem.stiffness_product, m.num_elements,
-                  inputs=[x, m.tets, m.dm_inv, m.volume, m.mu, m.lam, self.rot, self.stiffness_scale],
-                  outputs=[y], device=m.device)
+        self.elastic.apply(x, y, self.rot, self.stiffness_scale)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warpsoft.kernels import linalg
+from warpsoft.kernels.linear import cg as linalg
 
 from .operator import SystemOperator
 
@@ -24,11 +24,15 @@ from .operator import SystemOperator
 class SolveResult:
     """Outcome of one solve: iterations (shared by the columns; 0 for a direct solve), the
     largest relative residual ``|r| / |b|`` over the columns (NaN when a value was not
-    finite), and whether every column reached the tolerance."""
+    finite), and whether every column reached the tolerance. ``world_iterations`` and
+    ``world_residuals`` (``(worlds,)``, when the solver knows them) are the same per world: the
+    iterations its columns needed and its largest relative residual."""
 
     iterations: int
     residual: float
     converged: bool
+    world_iterations: np.ndarray | None = None
+    world_residuals: np.ndarray | None = None
 
 
 class PCG:
@@ -53,7 +57,7 @@ class PCG:
         self.graph = bool(graph) and m.device.is_cuda and getattr(preconditioner, "capturable", False)
         shape = (int(columns), m.num_nodes)
         self.r, self.z, self.p, self.ap = (wp.zeros(shape, dtype=wp.vec3d, device=m.device) for _ in range(4))
-        self.scal = wp.zeros((shape[0], linalg.NUM_SCALARS), dtype=wp.float64, device=m.device)
+        self.scal = wp.zeros((shape[0], m.num_worlds, linalg.NUM_SCALARS), dtype=wp.float64, device=m.device)
         self.info = wp.zeros(2, dtype=wp.int32, device=m.device)
         self.active = wp.zeros(1, dtype=wp.int32, device=m.device)
         self._graphs = {}
@@ -80,12 +84,15 @@ class PCG:
     def result(self) -> SolveResult:
         """Iterations and residual of the last solve (one read of a few numbers)."""
         info, s = self.info.numpy(), self.scal.numpy()
-        b2, r2 = s[:, linalg.B2], s[:, linalg.R2_LAST]
+        its = int(info[linalg.ITERATIONS])
+        b2, r2 = s[:, :, linalg.B2], s[:, :, linalg.R2_LAST]  # (columns, worlds)
         if info[linalg.NONFINITE] or not (np.all(np.isfinite(b2)) and np.all(np.isfinite(r2))):
-            return SolveResult(int(info[linalg.ITERATIONS]), math.nan, False)
-        rel = np.divide(np.sqrt(np.maximum(r2, 0.0)), np.sqrt(b2), out=np.zeros_like(b2), where=b2 > 0)
+            return SolveResult(its, math.nan, False)
+        rel = np.divide(np.sqrt(np.maximum(r2, 0.0)), np.sqrt(b2), out=np.zeros_like(b2), where=b2 > 0).max(axis=0)
+        done = s[:, :, linalg.DONE] > 0
+        world_its = np.where(done, s[:, :, linalg.ITS], its).max(axis=0).astype(int)
         residual = float(rel.max())
-        return SolveResult(int(info[linalg.ITERATIONS]), residual, residual <= self.tolerance)
+        return SolveResult(its, residual, residual <= self.tolerance, world_its, rel)
 
     def _run(self, b: wp.array, x: wp.array) -> None:
         m, d, shape = self.op.model, self.op.model.device, self.r.shape
@@ -93,9 +100,11 @@ class PCG:
         self.op.apply(x, self.ap)
         self.scal.zero_()
         self.info.zero_()
-        wp.launch(linalg.pcg_residual, shape, inputs=[b, self.ap, m.mask], outputs=[self.r, self.scal], device=d)
+        wp.launch(linalg.pcg_residual, shape, inputs=[b, self.ap, m.mask, self.r, m.node_world], outputs=[self.scal],
+                  device=d)
         self.precond.apply(self.r, self.z)
-        wp.launch(linalg.pcg_begin, shape, inputs=[self.r, self.z], outputs=[x, self.p, self.scal], device=d)
+        wp.launch(linalg.pcg_begin, shape, inputs=[self.r, self.z, x, self.p, m.node_world], outputs=[self.scal],
+                  device=d)
         self._check(0)
         wp.capture_while(self.active, self._iteration, x=x)
 
@@ -103,12 +112,14 @@ class PCG:
         """One iteration: ``A p``, ``alpha``, ``x``, ``r``, ``z = P^-1 r``, ``beta``, ``p``, stop test."""
         m, d, shape = self.op.model, self.op.model.device, self.r.shape
         self.op.apply(self.p, self.ap)
-        wp.launch(linalg.cg_curvature, shape, inputs=[self.p, self.ap, m.mask], outputs=[self.scal], device=d)
-        wp.launch(linalg.pcg_update, shape, inputs=[x, self.r, self.p, self.ap], outputs=[self.scal], device=d)
+        wp.launch(linalg.cg_curvature, shape, inputs=[self.p, self.ap, m.mask, m.node_world], outputs=[self.scal],
+                  device=d)
+        wp.launch(linalg.pcg_update, shape, inputs=[x, self.r, self.p, self.ap, m.node_world], outputs=[self.scal],
+                  device=d)
         self.precond.apply(self.r, self.z)
-        wp.launch(linalg.pcg_rz, shape, inputs=[self.r, self.z], outputs=[self.scal], device=d)
-        wp.launch(linalg.cg_scalars, shape[0], inputs=[self.scal], device=d)
-        wp.launch(linalg.cg_direction, shape, inputs=[self.z, self.p], outputs=[self.scal], device=d)
+        wp.launch(linalg.pcg_rz, shape, inputs=[self.r, self.z, m.node_world], outputs=[self.scal], device=d)
+        wp.launch(linalg.cg_scalars, self.scal.shape[:2], inputs=[self.scal], device=d)
+        wp.launch(linalg.cg_direction, shape, inputs=[self.z, self.p, m.node_world, self.scal], device=d)
         self._check(1)
 
     def _check(self, done: int) -> None:

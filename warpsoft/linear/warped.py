@@ -1,6 +1,6 @@
 """The warped-factorization preconditioner ``P^-1 = Q A_f^-1 Q^T`` (SOFA's WarpPreconditioner,
 Courtecuisse et al.): ``A`` is factorized once (at rest) and turned with the body by per-node
-rotations ``Q_i = R_i R_f,i^T`` (see ``kernels/warped.py``). Corotational stiffness changes
+rotations ``Q_i = R_i R_f,i^T`` (see ``kernels/linear/warped.py``). Corotational stiffness changes
 mostly by rotation, so this preconditioner stays close to ``A^-1`` under large motion:
 DESIGN section 4 measured 29 iterations on a Diamond bent by a 20 mm cable where block
 Jacobi needs 577.
@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warpsoft.kernels import warped as kernels
+from warpsoft.kernels.linear import warped as kernels
 
 from .assembly import Assembly, CholmodFactor, solve_dofs
 from .operator import SystemOperator

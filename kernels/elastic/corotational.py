@@ -1,0 +1,159 @@
+"""Corotational linear tetrahedra: rotations, forces, stiffness products, energy.
+
+Conventions (all kernels, float64):
+- ``tets[e]`` holds the four node ids ``(i0, i1, i2, i3)`` of element ``e`` with positive
+  rest volume ``(X1-X0) . ((X2-X0) x (X3-X0)) / 6 > 0``.
+- ``dm_inv[e]`` is ``Dm^-1`` with ``Dm = [X1-X0, X2-X0, X3-X0]`` (m^-1). Row ``k`` of it is the
+  gradient of the shape function of node ``k+1``; node 0's gradient is minus their sum.
+- ``F = Ds Dm^-1`` (``Ds`` from current positions); ``R`` is the rotation of its polar
+  decomposition, reflection-free also for inverted elements.
+- Linear strain in the rotated frame ``eps = sym(R^T F) - I``; stress
+  ``sigma = 2 mu eps + lam tr(eps) I`` (Pa). Internal force on node ``a``:
+  ``f_a = -V R sigma g_a`` (N). The stiffness ``K = R K0 R^T`` (rotation not differentiated).
+"""
+
+import warp as wp
+
+from .geometry import edge_matrix, polar_rotation, shape_gradient
+
+
+@wp.func
+def hooke(eps: wp.mat33d, mu: wp.float64, lam: wp.float64) -> wp.mat33d:
+    """Linear isotropic stress (Pa) of a symmetric strain."""
+    tr = eps[0, 0] + eps[1, 1] + eps[2, 2]
+    return wp.float64(2.0) * mu * eps + lam * tr * wp.identity(n=3, dtype=wp.float64)
+
+
+@wp.kernel
+def corotational_forces(
+    q: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    force: wp.array(dtype=wp.vec3d),
+):
+    """Linearize: store each element's rotation and scatter its internal forces (N)."""
+    e = wp.tid()
+    t = tets[e]
+    Di = dm_inv[e]
+    F = edge_matrix(q[t[0]], q[t[1]], q[t[2]], q[t[3]]) * Di
+    R = polar_rotation(F)
+    rot[e] = R
+    eps_full = wp.transpose(R) * F
+    eps = wp.float64(0.5) * (eps_full + wp.transpose(eps_full)) - wp.identity(n=3, dtype=wp.float64)
+    P = volume[e] * (R * hooke(eps, mu[e], lam[e]))
+    for a in range(4):
+        wp.atomic_sub(force, t[a], P * shape_gradient(Di, a))
+
+
+@wp.kernel
+def stiffness_product(
+    x: wp.array2d(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    scale: wp.float64,
+    y: wp.array2d(dtype=wp.vec3d),
+):
+    """``y[c] += scale * K x[c]`` for every column ``c``, element by element with
+    ``K_e = R (V B^T C B) R^T``: each element's data is read once for all columns."""
+    e = wp.tid()
+    t = tets[e]
+    Di = dm_inv[e]
+    R = rot[e]
+    Rt = wp.transpose(R)
+    g0 = shape_gradient(Di, 0)
+    g1 = shape_gradient(Di, 1)
+    g2 = shape_gradient(Di, 2)
+    g3 = shape_gradient(Di, 3)
+    s = scale * volume[e]
+    for c in range(x.shape[0]):
+        G = (wp.outer(Rt * x[c, t[0]], g0) + wp.outer(Rt * x[c, t[1]], g1) + wp.outer(Rt * x[c, t[2]], g2)
+             + wp.outer(Rt * x[c, t[3]], g3))
+        eps = wp.float64(0.5) * (G + wp.transpose(G))
+        P = s * (R * hooke(eps, mu[e], lam[e]))
+        wp.atomic_add(y, c, t[0], P * g0)
+        wp.atomic_add(y, c, t[1], P * g1)
+        wp.atomic_add(y, c, t[2], P * g2)
+        wp.atomic_add(y, c, t[3], P * g3)
+
+
+@wp.func
+def stiffness_block(ga: wp.vec3d, gb: wp.vec3d, mu: wp.float64, lam: wp.float64) -> wp.mat33d:
+    """Unrotated 3x3 block ``K0_ab / V`` coupling nodes ``a`` and ``b`` (Pa m^-2)."""
+    return mu * wp.dot(ga, gb) * wp.identity(n=3, dtype=wp.float64) + mu * wp.outer(gb, ga) + lam * wp.outer(
+        ga, gb
+    )
+
+
+@wp.kernel
+def stiffness_diagonal(
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    diag: wp.array(dtype=wp.mat33d),
+):
+    """Accumulate the 3x3 diagonal blocks of ``K`` (N/m) per node."""
+    e = wp.tid()
+    t = tets[e]
+    Di = dm_inv[e]
+    R = rot[e]
+    for a in range(4):
+        g = shape_gradient(Di, a)
+        Kaa = volume[e] * (R * stiffness_block(g, g, mu[e], lam[e]) * wp.transpose(R))
+        wp.atomic_add(diag, t[a], Kaa)
+
+
+@wp.kernel
+def stiffness_blocks(
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    blocks: wp.array(dtype=wp.mat33d),
+):
+    """All sixteen rotated 3x3 blocks of each element's stiffness, for sparse assembly
+    (direct solver only): ``blocks[16 e + 4 a + b] = V R K0_ab R^T`` (N/m)."""
+    e = wp.tid()
+    Di = dm_inv[e]
+    R = rot[e]
+    for a in range(4):
+        ga = shape_gradient(Di, a)
+        for b in range(4):
+            gb = shape_gradient(Di, b)
+            blocks[16 * e + 4 * a + b] = volume[e] * (R * stiffness_block(ga, gb, mu[e], lam[e]) * wp.transpose(R))
+
+
+@wp.kernel
+def elastic_energy(
+    q: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    energy: wp.array(dtype=wp.float64),
+):
+    """Corotational strain energy (J) summed into ``energy[0]``."""
+    e = wp.tid()
+    t = tets[e]
+    F = edge_matrix(q[t[0]], q[t[1]], q[t[2]], q[t[3]]) * dm_inv[e]
+    R = polar_rotation(F)
+    RF = wp.transpose(R) * F
+    eps = wp.float64(0.5) * (RF + wp.transpose(RF)) - wp.identity(n=3, dtype=wp.float64)
+    sig = hooke(eps, mu[e], lam[e])
+    w = wp.float64(0.0)
+    for i in range(3):
+        for j in range(3):
+            w += eps[i, j] * sig[i, j]
+    wp.atomic_add(energy, 0, wp.float64(0.5) * volume[e] * w)

@@ -1,0 +1,126 @@
+"""Kernels of the warped-factorization preconditioner ``P^-1 = Q A_f^-1 Q^T``.
+
+``A_f`` is the system matrix factorized once, at node rotations ``R_f`` (the rest state:
+identity). As the body turns, each node's frame turns by ``Q_i = R_i R_f,i^T``, where
+``R_i`` is the node's rotation: the polar rotation of the volume-weighted sum of the
+rotations of its elements. Rotating the residual into the factorized frame, solving, and
+rotating back follows the body's large rotations at the cost of a few vector kernels
+(SOFA's WarpPreconditioner; Courtecuisse et al.).
+
+Vectors are ``(k, n)`` arrays of vec3d (column, node); the dense path works on flat
+``(N, k)`` float arrays with ``N >= 3 n`` padded to the tile size, DOF ``3 i + a`` in row
+``3 i + a``.
+"""
+
+import warp as wp
+
+from ..elastic.geometry import polar_rotation
+
+
+@wp.kernel
+def accumulate_node_rotations(
+    tets: wp.array(dtype=wp.vec4i),
+    volume: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    node_sum: wp.array(dtype=wp.mat33d),
+):
+    """``node_sum[i] += V_e R_e`` over the elements ``e`` around node ``i``."""
+    e = wp.tid()
+    t = tets[e]
+    w = volume[e] * rot[e]
+    for a in range(4):
+        wp.atomic_add(node_sum, t[a], w)
+
+
+@wp.kernel
+def relative_node_rotations(
+    node_sum: wp.array(dtype=wp.mat33d),
+    frame: wp.array(dtype=wp.mat33d),
+    node_rot: wp.array(dtype=wp.mat33d),
+    q_rot: wp.array(dtype=wp.mat33d),
+):
+    """``R_i = polar(node_sum[i])`` and ``Q_i = R_i R_f,i^T`` (``frame`` holds ``R_f``)."""
+    i = wp.tid()
+    R = polar_rotation(node_sum[i])
+    node_rot[i] = R
+    q_rot[i] = R * wp.transpose(frame[i])
+
+
+@wp.kernel
+def rotate_in(
+    r: wp.array2d(dtype=wp.vec3d),
+    q_rot: wp.array(dtype=wp.mat33d),
+    mask: wp.array(dtype=wp.vec3d),
+    u: wp.array2d(dtype=wp.vec3d),
+):
+    """``u[c, i] = mask_i * (Q_i^T r[c, i])``: the residual in the factorized frame."""
+    c, i = wp.tid()
+    u[c, i] = wp.cw_mul(mask[i], wp.transpose(q_rot[i]) * r[c, i])
+
+
+@wp.kernel
+def rotate_out(
+    y: wp.array2d(dtype=wp.vec3d),
+    q_rot: wp.array(dtype=wp.mat33d),
+    mask: wp.array(dtype=wp.vec3d),
+    z: wp.array2d(dtype=wp.vec3d),
+):
+    """``z[c, i] = mask_i * (Q_i y[c, i])``: back to the current frame."""
+    c, i = wp.tid()
+    z[c, i] = wp.cw_mul(mask[i], q_rot[i] * y[c, i])
+
+
+_flat = {}
+
+
+def flat_rotations(dtype):
+    """Kernels ``(rotate_in_flat, rotate_out_flat)``: :func:`rotate_in` into, and
+    :func:`rotate_out` from, the flat ``(N, k)`` operand of the dense product, whose
+    precision ``dtype`` (wp.float32 or wp.float64) is that of the dense inverse."""
+    if dtype in _flat:
+        return _flat[dtype]
+
+    @wp.kernel(module="unique")
+    def rotate_in_flat(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
+                       mask: wp.array(dtype=wp.vec3d), u: wp.array2d(dtype=dtype)):
+        c, i = wp.tid()
+        v = wp.cw_mul(mask[i], wp.transpose(q_rot[i]) * r[c, i])
+        for a in range(3):
+            u[3 * i + a, c] = dtype(v[a])
+
+    @wp.kernel(module="unique")
+    def rotate_out_flat(y: wp.array2d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
+                        mask: wp.array(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d)):
+        c, i = wp.tid()
+        v = wp.vec3d(wp.float64(y[3 * i, c]), wp.float64(y[3 * i + 1, c]), wp.float64(y[3 * i + 2, c]))
+        z[c, i] = wp.cw_mul(mask[i], q_rot[i] * v)
+
+    _flat[dtype] = (rotate_in_flat, rotate_out_flat)
+    return _flat[dtype]
+
+
+_dense_products = {}
+
+
+def dense_product(columns: int, dtype, tile_m: int = 32, tile_k: int = 64):
+    """Kernel ``Y = A U`` for a dense square ``A`` ``(N, N)`` and ``U`` ``(N, columns)``,
+    one thread block per ``tile_m`` rows, ``N`` a multiple of ``tile_m`` and ``tile_k``.
+    Launch with ``wp.launch_tiled(kernel, dim=[N // tile_m], ...)``. Tile shapes are
+    compile-time constants, hence one kernel per (columns, dtype, tiles), cached."""
+    key = (columns, dtype, tile_m, tile_k)
+    if key in _dense_products:
+        return _dense_products[key]
+    TM, TK, TN = tile_m, tile_k, columns
+
+    @wp.kernel(module="unique")
+    def product(A: wp.array2d(dtype=dtype), U: wp.array2d(dtype=dtype), Y: wp.array2d(dtype=dtype)):
+        i = wp.tid()
+        acc = wp.tile_zeros(shape=(TM, TN), dtype=dtype)
+        for kk in range(A.shape[1] // TK):
+            a = wp.tile_load(A, shape=(TM, TK), offset=(i * TM, kk * TK))
+            u = wp.tile_load(U, shape=(TK, TN), offset=(kk * TK, 0))
+            wp.tile_matmul(a, u, acc)
+        wp.tile_store(Y, acc, offset=(i * TM, 0))
+
+    _dense_products[key] = product
+    return product

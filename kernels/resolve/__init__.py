@@ -1,0 +1,1 @@
+"""Kernels of warpsoft.resolve."""

@@ -1,0 +1,99 @@
+"""Worlds: a model of several different scenes steps each of them exactly as it steps alone."""
+
+import numpy as np
+import pytest
+
+import warpsoft as ws
+
+
+def static_trio(scene_module):
+    """Three different quasi-static scenes: cables on a bar, a pressurized cavity, a loaded beam."""
+    return [scene_module("scenes/validation/cable_bar.py").build(cable_displacement=0.001, mesh_size=0.005),
+            scene_module("scenes/validation/pressure_sphere.py").build(mesh_size=0.005),
+            scene_module("scenes/validation/cantilever.py").build(tip_force=-0.05, mesh_size=0.005)]
+
+
+def dynamic_trio(scene_module):
+    """Three different dynamic robots under gravity: an inverse Diamond, an inverse Trunk and a
+    Diamond driven directly by its cables, each its own mesh."""
+    diamond, trunk = scene_module("scenes/diamond.py"), scene_module("scenes/trunk.py")
+    return [diamond.build(mesh_size=0.02, mode="inverse", circle_period=0.2),
+            trunk.build(mesh_size=0.014, rayleigh_stiffness=0.1, period=0.2),
+            diamond.build(mesh_size=0.017, cable_displacements=(0.004, 0.0, 0.002, 0.0), ramp_time=0.06)]
+
+
+def run_alone_and_together(scenes, steps, **options):
+    alone = []
+    for s in scenes:
+        sim = ws.Simulator(s, **options)
+        alone.append([sim.step() for _ in range(steps)])
+        alone[-1].append(sim.positions())
+    sim = ws.Simulator(ws.finalize(scenes), **options)
+    together = [sim.step() for _ in range(steps)]
+    return sim, alone, together
+
+
+def assert_same(sim, alone, together, tol):
+    m = sim.model
+    for w, history in enumerate(alone):
+        q_alone, q_world = history[-1], sim.positions(w)
+        rest = m.rest_np[m.world_nodes(w)]
+        scale = np.abs(q_alone - rest).max()
+        assert scale > 1e-6  # the world did move
+        assert np.abs(q_world - q_alone).max() <= tol * scale
+        for k, stats in enumerate(history[:-1]):
+            mine = together[k].worlds[w]
+            assert mine.actuator_delta.keys() == stats.actuator_delta.keys()
+            for name, v in stats.actuator_delta.items():
+                assert mine.actuator_delta[name] == pytest.approx(v, rel=tol, abs=tol * 1e-3)
+            for name, v in stats.actuator_lambda.items():
+                assert mine.actuator_lambda[name] == pytest.approx(v, rel=1e3 * tol, abs=1e-9)
+            for name, v in stats.effectors.items():
+                assert np.abs(mine.effectors[name] - v).max() <= tol * scale
+            assert mine.qp_status == stats.qp_status
+
+
+@pytest.mark.parametrize("solver", ["direct", "pcg"])
+def test_three_static_worlds_step_as_alone(scene_module, solver):
+    scenes = static_trio(scene_module)
+    sim, alone, together = run_alone_and_together(scenes, 3, solver=solver, tolerance=1e-10)
+    assert sim.model.num_worlds == 3 and list(sim.rows.world_actuators) == [1, 1, 0]
+    assert_same(sim, alone, together, 1e-8)
+    if solver == "pcg":  # each world converges on its own residual, in its own iteration count
+        for k in range(3):
+            assert [together[k].worlds[w].cg_iterations for w in range(3)] == \
+                [alone[w][k].cg_iterations for w in range(3)]
+
+
+@pytest.mark.parametrize("solver", ["direct", "pcg"])
+def test_three_dynamic_robots_step_as_alone(scene_module, solver):
+    scenes = dynamic_trio(scene_module)
+    sim, alone, together = run_alone_and_together(scenes, 4, solver=solver)
+    assert [s.inverse for s in sim.model.scenes] == [True, True, False]
+    assert list(sim.rows.world_actuators) == [4, 8, 4] and sim.rows.num_columns == 8
+    assert_same(sim, alone, together, 1e-8)
+    for k in range(4):
+        assert [together[k].worlds[w].cg_iterations for w in range(3)] == [alone[w][k].cg_iterations for w in range(3)]
+
+
+def test_one_world_model_is_the_scene(scene_module):
+    scene = static_trio(scene_module)[0]
+    a, b = ws.Simulator(scene), ws.Simulator(ws.finalize([scene]))
+    for _ in range(2):
+        a.step()
+        b.step()
+    assert np.array_equal(a.state.positions(), b.state.positions())
+
+
+def test_worlds_must_share_the_step(scene_module):
+    scenes = static_trio(scene_module)
+    scenes[1].dt = 0.02
+    with pytest.raises(ws.SceneError, match=r"world 1 \(scene 'pressure_sphere'\) has dt = 0.02"):
+        ws.finalize(scenes)
+    sim = ws.Simulator(ws.finalize(static_trio(scene_module)))
+    with pytest.raises(ws.SceneError, match=r"control: this model has 3 worlds"):
+        sim.step(ws.Control({"cable": 0.001}))
+    with pytest.raises(ws.SceneError, match=r"control \(world 0\): no actuator named nope"):
+        sim.step([ws.Control({"nope": 1.0}), None, None])
+    with pytest.raises(ws.SceneError, match=r"stats.worlds\[w\].actuator_delta"):
+        _ = sim.step().actuator_delta

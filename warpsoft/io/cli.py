@@ -1,0 +1,59 @@
+"""Command line: ``warpsoft run SCENE.py [--steps N] [--device cpu|cuda] [--usd OUT] [--report OUT.json]
+[--param key=value ...]``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..errors import WarpsoftError
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="warpsoft", description="Simulate and control soft robots with NVIDIA Warp.")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run", help="run a scene file (a Python file defining build(**params) -> Scene)")
+    r.add_argument("scene", help="path of the scene file")
+    r.add_argument("--steps", type=int, default=None, help="number of steps (default: the scene's)")
+    r.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:0 (default: Warp's default)")
+    r.add_argument("--usd", default=None, help="write a USD animation (.usda text or .usdc binary)")
+    r.add_argument("--report", default=None, help="write a JSON report")
+    r.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
+                   help="scene parameter; VALUE is a Python or JSON literal (repeatable)")
+    r.add_argument("--solver", choices=["auto", "pcg", "direct", "jacobi"], default="auto",
+                   help="linear solver (default: auto, the fastest measured on the device: direct on cpu, pcg on cuda)")
+    r.add_argument("--tolerance", type=float, default=1e-6, help="CG relative residual (default: 1e-6)")
+    r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    from .runner import build_scene, parse_params, run
+
+    try:
+        params = parse_params(args.param)
+        scene = build_scene(args.scene, params)
+        rep = run(scene, steps=args.steps, device=args.device, usd=args.usd, report=args.report,
+                  solver=args.solver, tolerance=args.tolerance, progress=not args.quiet, scene_file=args.scene)
+    except WarpsoftError as exc:
+        print(f"warpsoft: error: {exc}", file=sys.stderr)
+        return 2
+    if not args.quiet:
+        d = rep.to_dict()
+        t = d["timings"]["step"]
+        print(f"{d['scene']}: {d['steps']} steps on {d['device']}, {d['dofs']} DOFs, {d['elements']} elements; "
+              f"step median {1e3 * t['median']:.2f} ms, p90 {1e3 * t['p90']:.2f} ms")
+        for name, pts in d["points"].items():
+            print(f"  {name}: {[round(v, 6) for v in pts[-1]]} m")
+        for w in d["warnings"][:5]:
+            print(f"  warning: {w}")
+        if args.usd:
+            print(f"  USD: {args.usd}")
+        if args.report:
+            print(f"  report: {args.report}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,123 @@
+"""Run reports: what a run did, step by step, as a JSON-ready dictionary."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..simulator import Simulator, StepStats
+
+
+def percentiles(values: list[float]) -> dict[str, float]:
+    """Median, 90th percentile, mean, min and max of ``values`` (empty -> NaN-free zeros)."""
+    if not values:
+        return {"median": 0.0, "p90": 0.0, "mean": 0.0, "min": 0.0, "max": 0.0, "count": 0}
+    a = np.asarray(values, dtype=float)
+    return {"median": float(np.median(a)), "p90": float(np.percentile(a, 90)), "mean": float(a.mean()),
+            "min": float(a.min()), "max": float(a.max()), "count": int(len(a))}
+
+
+def jsonable(value):
+    """Convert NumPy values and tuples to plain JSON types; non-finite floats become strings."""
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else str(value)
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (str, int, bool)) or value is None:
+        return value
+    return repr(value)
+
+
+class RunReport:
+    """Collects per-step records of a simulator run."""
+
+    def __init__(self, sim: Simulator, scene_file: str | None = None, params: dict | None = None):
+        self.sim, self.scene_file, self.params = sim, scene_file, dict(params or {})
+        self.steps: list[StepStats] = []
+        self.points: dict[str, list] = {name: [] for name in sim.model.probe_names}
+        self.W: list = []
+
+    def record(self, stats: StepStats, probes: dict[str, np.ndarray]) -> None:
+        self.steps.append(stats)
+        for name, p in probes.items():
+            self.points[name].append(np.asarray(p).tolist())
+        rows = self.sim.rows
+        if rows is not None and rows.num_actuators and self.sim.last_W is not None:
+            self.W.append(self.sim.last_W[: rows.num_actuators].tolist())
+
+    def _constraints(self) -> dict:
+        if self.sim.rows is None:
+            return {}
+        acts, effs = self.sim.rows.actuators[0], self.sim.rows.effectors[0]  # a run is one world
+        actuators = {a.name: {"kind": a.kind, "mode": a.mode,
+                              "delta": [s.actuator_delta[a.name] for s in self.steps],
+                              "lambda": [s.actuator_lambda[a.name] for s in self.steps]} for a in acts}
+        effectors = {e.name: [np.asarray(s.effectors[e.name]).tolist() for s in self.steps] for e in effs}
+        out = {"actuators": actuators, "effectors": effectors,
+               "W": self.W, "W_units": "cable m/N, cavity m^3/Pa (rows and columns in actuator order)",
+               "compliance_iterations": [s.compliance_iterations for s in self.steps],
+               "resolve_iterations": [s.resolve_iterations for s in self.steps],
+               "resolve_residuals": [s.resolve_residual for s in self.steps]}
+        targeted = [e.name for e in effs if e.target is not None]
+        if targeted:
+            out["targets"] = {name: [np.asarray(s.targets[name]).tolist() for s in self.steps] for name in targeted}
+            out["effector_error"] = {name: [s.effector_error[name] for s in self.steps] for name in targeted}
+        if self.sim.model.scene.inverse:
+            out["inverse"] = {"epsilon": self.sim.model.scene.inverse_epsilon,
+                              "qp_status": [s.qp_status for s in self.steps],
+                              "qp_seconds": [s.qp_seconds for s in self.steps]}
+        return out
+
+    def to_dict(self) -> dict:
+        m, sim = self.sim.model, self.sim
+        timed = self.steps[1:] if len(self.steps) > 1 else self.steps  # step 1 compiles kernels
+        stage_names = sorted({k for s in self.steps for k in s.stages})
+        warnings = [w for s in self.steps for w in s.warnings]
+        return jsonable({
+            "scene": m.scene.name,
+            "scene_file": self.scene_file,
+            "params": self.params,
+            "device": str(m.device),
+            "solver": sim.solver_name,
+            "static": m.static,
+            "dt": m.dt,
+            "dofs": m.num_dofs,
+            "fixed_dofs": m.num_fixed_dofs,
+            "nodes": m.num_nodes,
+            "elements": m.num_elements,
+            "bodies": [b.name for b in m.bodies],
+            "steps": len(self.steps),
+            "time": [s.time for s in self.steps],
+            "points": self.points,
+            "cg": {
+                "tolerance": getattr(sim.solver, "tolerance", None),
+                "iterations": [s.cg_iterations for s in self.steps],
+                "residuals": [s.cg_residual for s in self.steps],
+                "converged": [s.converged for s in self.steps],
+            },
+            "stages_run": stage_names,
+            "timings": {
+                "note": "seconds; statistics exclude step 1 (kernel compilation) when there are 2+ steps",
+                "step": percentiles([s.total for s in timed]),
+                "stages": {k: percentiles([s.stages.get(k, 0.0) for s in timed]) for k in stage_names},
+                "first_step": self.steps[0].total if self.steps else None,
+                "per_step": [s.total for s in self.steps],
+            },
+            "warnings": warnings,
+            **self._constraints(),
+        })
+
+    def write(self, path: str | Path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(self.to_dict(), indent=1))
+        return path

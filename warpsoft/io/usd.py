@@ -1,0 +1,109 @@
+"""USD export: one stage per run, time-sampled body surfaces and probe spheres."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneError
+from ..model import Model
+
+
+class UsdWriter:
+    """Write a run as a USD animation (``.usda`` text or ``.usdc`` binary, by extension).
+
+    Frame ``k`` (time code ``k``) holds the state after step ``k``; frame 0 the initial state.
+    Stage metadata: ``upAxis = Z``, ``metersPerUnit = 1``, ``timeCodesPerSecond = 1 / dt``.
+    """
+
+    def __init__(self, path: str | Path, model: Model):
+        from pxr import Gf, Sdf, Usd, UsdGeom, Vt
+
+        self._Gf, self._Vt, self._UsdGeom = Gf, Vt, UsdGeom
+        path = Path(path)
+        if path.suffix not in (".usda", ".usdc", ".usd"):
+            raise SceneError(f"USD output: extension must be .usda, .usdc or .usd, got {str(path)!r}")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.path, self.model = path, model
+        self.stage = Usd.Stage.CreateNew(str(path))
+        UsdGeom.SetStageUpAxis(self.stage, UsdGeom.Tokens.z)
+        UsdGeom.SetStageMetersPerUnit(self.stage, 1.0)
+        self.stage.SetTimeCodesPerSecond(1.0 / model.dt)
+        self.stage.SetStartTimeCode(0)
+        world = UsdGeom.Xform.Define(self.stage, "/World")
+        self.stage.SetDefaultPrim(world.GetPrim())
+        self.stage.GetRootLayer().customLayerData = {"generator": "warpsoft", "scene": model.scene.name}
+
+        self.meshes = []  # (UsdGeom.Mesh, surface node ids)
+        for body in model.bodies:
+            ids, local = np.unique(body.surface, return_inverse=True)
+            mesh = UsdGeom.Mesh.Define(self.stage, f"/World/{_name(body.name)}")
+            mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+            mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(body.surface)))
+            mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(local.astype(int).ravel().tolist()))
+            mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.85, 0.45, 0.3)]))
+            self.meshes.append((mesh, ids))
+        size = float(np.linalg.norm(model.rest_np.max(axis=0) - model.rest_np.min(axis=0)))
+        self.probes = {}
+        if model.probe_names:
+            UsdGeom.Scope.Define(self.stage, "/World/probes")
+        for name in model.probe_names:
+            sphere = UsdGeom.Sphere.Define(self.stage, f"/World/probes/{_name(name)}")
+            sphere.CreateRadiusAttr(0.015 * size)
+            sphere.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.2, 0.4, 0.9)]))
+            self.probes[name] = sphere.AddTranslateOp()
+        self.cables, self.effectors, self.targets = {}, {}, {}
+        self._marker = 0.02 * size
+        self.frames = 0
+        _ = Sdf  # imported for its side effect of loading the USD file formats
+
+    def _sphere(self, path: str, color) -> object:
+        Gf, Vt = self._Gf, self._Vt
+        sphere = self._UsdGeom.Sphere.Define(self.stage, path)
+        sphere.CreateRadiusAttr(self._marker)
+        sphere.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*color)]))
+        return sphere.AddTranslateOp()
+
+    def write_rows(self, frame: int, geometry: dict) -> None:
+        """Cables as linear curves through their path, effectors (green) and targets (red)
+        as spheres, at time code ``frame`` (``geometry`` from ``Simulator.constraint_geometry``)."""
+        Gf, Vt, UsdGeom = self._Gf, self._Vt, self._UsdGeom
+        for name, path in geometry["cables"].items():
+            if name not in self.cables:
+                curve = UsdGeom.BasisCurves.Define(self.stage, f"/World/cables/{_name(name)}")
+                curve.CreateTypeAttr(UsdGeom.Tokens.linear)
+                curve.CreateCurveVertexCountsAttr(Vt.IntArray([len(path)]))
+                curve.CreateWidthsAttr(Vt.FloatArray([0.3 * self._marker]))
+                curve.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.1, 0.1, 0.1)]))
+                self.cables[name] = curve
+            self.cables[name].GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(np.asarray(path, dtype=np.float32)), frame)
+        for group, store, color in (("effectors", self.effectors, (0.1, 0.7, 0.2)),
+                                    ("targets", self.targets, (0.9, 0.1, 0.1))):
+            for name, p in geometry[group].items():
+                if name not in store:
+                    store[name] = self._sphere(f"/World/{group}/{_name(name)}", color)
+                store[name].Set(Gf.Vec3d(*np.asarray(p, dtype=float).tolist()), frame)
+
+    def write_frame(self, frame: int, q: np.ndarray, probes: dict[str, np.ndarray]) -> None:
+        """Store positions ``q`` ``(n, 3)`` (m) and probe positions at time code ``frame``."""
+        Gf, Vt = self._Gf, self._Vt
+        for mesh, ids in self.meshes:
+            pts = q[ids]
+            mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(pts.astype(np.float32)), frame)
+            lo, hi = pts.min(axis=0), pts.max(axis=0)
+            mesh.GetExtentAttr().Set(Vt.Vec3fArray([Gf.Vec3f(*lo.tolist()), Gf.Vec3f(*hi.tolist())]), frame)
+        for name, op in self.probes.items():
+            op.Set(Gf.Vec3d(*np.asarray(probes[name], dtype=float).tolist()), frame)
+        self.frames = max(self.frames, frame + 1)
+
+    def save(self) -> Path:
+        self.stage.SetEndTimeCode(max(self.frames - 1, 0))
+        self.stage.GetRootLayer().Save()
+        return self.path
+
+
+def _name(name: str) -> str:
+    from pxr import Tf
+
+    return Tf.MakeValidIdentifier(name)

@@ -1,0 +1,125 @@
+"""The direct model: actuator multipliers in constraint space by projected Gauss-Seidel.
+
+Each actuator row ``i`` has ``delta_i = delta_free_i + sum_j W_ij lambda_j`` and is either
+displacement-driven (``delta_i`` imposed) or force-driven (``lambda_i`` imposed), with
+``lambda_i`` in ``[lo_i, hi_i]`` and ``delta_i`` in ``[dmin_i, dmax_i]`` (the displacement
+bounds bind in force mode too). Projected Gauss-Seidel solves this mixed complementarity
+problem; ``W`` is symmetric positive definite so the sweeps converge.
+
+:func:`projected_gauss_seidel` is v1's NumPy reference for one world; :class:`GaussSeidel` runs
+the same sweeps on the device for every world at once (``kernels/resolve/gauss_seidel.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from warpsoft.kernels.resolve import gauss_seidel as kernels
+
+
+@dataclass
+class RowInputs:
+    """Per actuator row, arrays of length ``na``: ``force_mode`` (bool), ``value`` (imposed
+    delta or lambda), force bounds ``lo``/``hi``, displacement bounds ``dmin``/``dmax``."""
+
+    force_mode: np.ndarray
+    value: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    dmin: np.ndarray
+    dmax: np.ndarray
+
+
+@dataclass
+class ResolveResult:
+    lam: np.ndarray
+    iterations: int
+    residual: float  # largest change of a row's delta (its units) in the last sweep
+    converged: bool
+
+
+def projected_gauss_seidel(W: np.ndarray, delta_free: np.ndarray, rows: RowInputs, lam0: np.ndarray | None = None,
+                           max_iterations: int = 1000, tolerance: float = 1e-12) -> ResolveResult:
+    """Solve for ``lambda`` (``na``) given ``W`` (``na x na``) and ``delta_free`` (``na``).
+
+    ``tolerance`` is relative to the largest ``|delta|`` scale of the problem.
+    """
+    na = len(delta_free)
+    lam = np.zeros(na) if lam0 is None else np.clip(np.array(lam0, dtype=float), rows.lo, rows.hi)
+    target = np.clip(rows.value, rows.dmin, rows.dmax)
+    diag = np.diag(W).copy()
+    scale = max(float(np.max(np.abs(delta_free), initial=0.0)), float(np.max(np.abs(target), initial=0.0)), 1e-300)
+    change = 0.0
+    for it in range(1, max_iterations + 1):
+        change = 0.0
+        for i in range(na):
+            if diag[i] <= 0.0:  # a row that moves nothing: its force is only bounded
+                new = np.clip(rows.value[i] if rows.force_mode[i] else 0.0, rows.lo[i], rows.hi[i])
+            else:
+                d = delta_free[i] + W[i] @ lam
+                if rows.force_mode[i]:
+                    new = rows.value[i]
+                    d_new = d + diag[i] * (new - lam[i])
+                    if d_new > rows.dmax[i]:
+                        new += (rows.dmax[i] - d_new) / diag[i]
+                    elif d_new < rows.dmin[i]:
+                        new += (rows.dmin[i] - d_new) / diag[i]
+                else:
+                    new = lam[i] + (target[i] - d) / diag[i]
+                new = min(max(new, rows.lo[i]), rows.hi[i])
+            change = max(change, abs(new - lam[i]) * max(diag[i], 0.0))
+            lam[i] = new
+        if change <= tolerance * scale:
+            return ResolveResult(lam, it, change, True)
+    return ResolveResult(lam, max_iterations, change, False)
+
+
+def kinematic_jacobian(W_ea: np.ndarray, W_aa: np.ndarray) -> np.ndarray:
+    """``J = W_ea W_aa^-1``: effector motion (m) per unit actuator displacement, ``(ne, na)``."""
+    return np.linalg.solve(W_aa.T, W_ea.T).T
+
+
+class GaussSeidel:
+    """Projected Gauss-Seidel of every world on the device (one thread per world).
+
+    Per-row inputs live on the device in ``inputs`` ``(NUM_INPUTS, rows)`` (mode, value, force
+    and displacement bounds, step bound; see the kernel module): the constant ones are written
+    once; :meth:`set_values` uploads the inputs of a step in one copy, only when they changed.
+    ``lam`` ``(rows,)`` holds the multipliers (warm start on entry); ``result`` ``(worlds, 3)``
+    the sweeps, last change and convergence of each world.
+    """
+
+    def __init__(self, rows, max_iterations: int = 1000, tolerance: float = 1e-12):
+        self.rows, d = rows, rows.device
+        n = max(rows.num_rows, 1)
+        host = np.zeros((kernels.NUM_INPUTS, n))
+        for w in range(rows.num_worlds):
+            for k, a in enumerate(rows.actuators[w]):
+                r = rows.world_row_start[w] + k
+                host[:, r] = [a.mode == "force", 0.0, a.min_force, a.max_force, a.min_displacement,
+                              a.max_displacement, a.max_step]
+        self.host = host
+        self.inputs = wp.array(host, dtype=wp.float64, device=d)
+        self.lam = wp.zeros(n, dtype=wp.float64, device=d)
+        self.result = wp.zeros((rows.num_worlds, 3), dtype=wp.float64, device=d)
+        self.max_iterations, self.tolerance = int(max_iterations), float(tolerance)
+        self._uploaded = None
+
+    def set_values(self, values: np.ndarray) -> None:
+        """The imposed value of every row ``(rows,)`` this step; one copy when they changed."""
+        if self._uploaded is None or not np.array_equal(values, self._uploaded):
+            self.host[kernels.VALUE, : len(values)] = values
+            self.inputs.assign(self.host)
+            self._uploaded = values.copy()
+
+    def solve(self, W: wp.array, delta_free: wp.array, delta_now: wp.array) -> None:
+        """``lam`` of every world's actuator rows from ``W`` ``(rows, columns)``, ``delta_free`` and
+        the rows' values at the start of the step ``delta_now`` (``(rows,)``); on the device."""
+        rows = self.rows
+        wp.launch(kernels.projected_gauss_seidel, rows.num_worlds,
+                  inputs=[W, delta_free, delta_now, self.inputs, rows.world_row_start_d, rows.world_actuators_d,
+                          self.max_iterations, self.tolerance],
+                  outputs=[self.lam, self.result], device=rows.device)

@@ -1,0 +1,217 @@
+"""Constraint rows: every row of every world in one table.
+
+A row has a measure ``delta(q)``, a direction ``H = d delta / dq`` stored as sparse entries
+``(h_row, h_node, h_coef)`` and a multiplier ``lambda``. Rows are laid out world by world; in a
+world the actuator rows come first (in :data:`ROW_KINDS` order: cables, then cavities), then the
+effector rows. Each actuator row ``j`` of a world owns compliance column ``j`` (the column count
+is the largest actuator count of a world): a column spans every world's nodes and holds, on
+world ``w``'s nodes, the response to world ``w``'s ``j``-th actuator. So ``W = H X`` needs no
+world bookkeeping: a row's entries touch only its world's nodes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from warpsoft.kernels.rows import common as kernels
+from warpsoft.kernels.rows import mapping
+
+from ..mapping import locate
+from .cable import CableRows
+from .cavity import CavityRows
+from .effector import EffectorRows
+from .kind import Placed, RowKind
+
+ROW_KINDS: tuple[type[RowKind], ...] = (CableRows, CavityRows, EffectorRows)
+"""Row kinds in table order (actuator kinds first within a world); a new kind is one line here."""
+
+
+class Rows:
+    """Device arrays of all constraint rows of a model.
+
+    Attributes (device unless said): ``delta`` ``(rows,)`` row values (m, m^3); ``h_row``,
+    ``h_node``, ``h_coef`` ``(entries,)`` the entries of ``H``; ``points`` ``(points,)`` mapped
+    points (m); ``W`` ``(rows, columns)`` compliance of each row against its world's actuator
+    columns (m/N, m^3/Pa). Host: ``world_row_start`` ``(worlds + 1,)``, ``world_actuators``
+    ``(worlds,)``, ``num_columns`` (largest actuator count of a world), ``kinds`` (one object
+    per row kind present), ``actuators[w]`` and ``effectors[w]`` (the scene items, in row order).
+    """
+
+    def __init__(self, model):
+        d = self.device = model.device
+        self.model = model
+        self.num_worlds = model.num_worlds
+        order = [k for k in ROW_KINDS if k.actuator] + [k for k in ROW_KINDS if not k.actuator]
+        placed: dict[type[RowKind], list[Placed]] = {k: [] for k in order}
+        row, starts, counts = 0, [0], []
+        self.actuators, self.effectors = [], []
+        for w, scene in enumerate(model.scenes):
+            na = 0
+            for kind in order:
+                for item in kind.items(scene):
+                    n = kind.row_count(item)
+                    placed[kind].append(Placed(w, item, row, n))
+                    row += n
+                    na += n if kind.actuator else 0
+            counts.append(na)
+            starts.append(row)
+            self.actuators.append([p.item for k in order if k.actuator for p in placed[k] if p.world == w])
+            self.effectors.append([p.item for p in placed[EffectorRows] if p.world == w])
+        self.num_rows = row
+        self.world_row_start = np.array(starts, dtype=np.int32)
+        self.world_actuators = np.array(counts, dtype=np.int32)
+        self.num_columns = int(self.world_actuators.max(initial=0))
+        self.world_row_start_d = wp.array(self.world_row_start, dtype=wp.int32, device=d)
+        self.world_actuators_d = wp.array(self.world_actuators, dtype=wp.int32, device=d)
+
+        # mapped points, kind by kind (a kind's points are contiguous), each located in its elements
+        nodes, weights, point = [], [], 0
+        for kind in order:
+            for p in placed[kind]:
+                pts = kind.points(p.item)
+                if not len(pts):
+                    continue
+                lo, hi = kind.point_elements(model, p.world, p.item)
+                names = ([f"effector '{p.item.name}'"] if kind is EffectorRows
+                         else [f"{kind.name} '{p.item.name}' point {k}" for k in range(len(pts))])
+                ids, w_ = locate(model.rest_np, model.tets_np[lo:hi], pts, names)
+                nodes.append(ids)
+                weights.append(w_)
+                p.first_point, p.num_points = point, len(pts)
+                point += len(pts)
+        self.num_points = point
+        self.point_nodes = wp.array(np.concatenate(nodes), dtype=wp.vec4i, device=d) if nodes else None
+        self.point_weights = wp.array(np.concatenate(weights), dtype=wp.vec4d, device=d) if nodes else None
+        self.points = wp.zeros(max(point, 1), dtype=wp.vec3d, device=d)
+
+        self.kinds, entry, base = [], 0, np.zeros(self.num_rows)
+        for kind in order:
+            if placed[kind]:
+                block = kind(model, placed[kind], entry)
+                entry += block.num_entries
+                for r, v in block.rest_delta().items():
+                    base[r] = v
+                self.kinds.append(block)
+        self.num_entries = entry
+        self.delta_base = wp.array(base, dtype=wp.float64, device=d)
+        self.delta = wp.zeros(self.num_rows, dtype=wp.float64, device=d)
+        self.h_row = wp.zeros(entry, dtype=wp.int32, device=d)
+        self.h_node = wp.zeros(entry, dtype=wp.int32, device=d)
+        self.h_coef = wp.zeros(entry, dtype=wp.vec3d, device=d)
+        col = np.full(self.num_rows, -1, dtype=np.int32)
+        for w in range(self.num_worlds):
+            col[starts[w]:starts[w] + counts[w]] = np.arange(counts[w])
+        self.column_of_row = wp.array(col, dtype=wp.int32, device=d)
+        self.W = wp.zeros((self.num_rows, max(self.num_columns, 1)), dtype=wp.float64, device=d)
+        self._change = wp.zeros((self.num_rows, 1), dtype=wp.float64, device=d)
+        self.delta_free = wp.zeros(max(self.num_rows, 1), dtype=wp.float64, device=d)
+
+    # ---- what a world holds ---------------------------------------------------------------
+    def kind(self, name: str) -> RowKind | None:
+        """The block of row kind ``name`` ("cable", "cavity", "effector"), or None."""
+        return next((k for k in self.kinds if k.name == name), None)
+
+    def world_rows(self, world: int) -> slice:
+        return slice(int(self.world_row_start[world]), int(self.world_row_start[world + 1]))
+
+    def actuator_rows(self, world: int) -> slice:
+        s = int(self.world_row_start[world])
+        return slice(s, s + int(self.world_actuators[world]))
+
+    def effector_rows(self, world: int) -> slice:
+        return slice(self.actuator_rows(world).stop, int(self.world_row_start[world + 1]))
+
+    @property
+    def num_actuators(self) -> int:
+        """Actuator rows of all worlds."""
+        return int(self.world_actuators.sum())
+
+    @property
+    def effector_row_slice(self) -> slice:
+        """The effector rows of a one-world model."""
+        return self.effector_rows(0)
+
+    # ---- evaluation -------------------------------------------------------------------------
+    def set_time(self, t: float) -> np.ndarray | None:
+        """Upload the effector targets at time ``t``; returns them ``(effectors, 3)`` (m), in
+        table order, or None without effectors."""
+        eff = self.kind("effector")
+        return eff.set_time(t) if eff is not None else None
+
+    def evaluate(self, q: wp.array) -> None:
+        """``delta`` and ``H`` of every row at positions ``q``: one launch per kind, all worlds."""
+        if self.num_points:
+            wp.launch(mapping.interpolate_points, self.num_points, inputs=[q, self.point_nodes, self.point_weights],
+                      outputs=[self.points], device=self.device)
+        wp.copy(self.delta, self.delta_base)
+        for block in self.kinds:
+            block.evaluate(self, q)
+
+    def actuator_columns(self, columns: wp.array) -> None:
+        """``columns[j] = H_j^T`` for each world's ``j``-th actuator row (``(columns, n)`` vec3d)."""
+        columns.zero_()
+        wp.launch(kernels.rows_to_columns, self.num_entries,
+                  inputs=[self.h_row, self.h_node, self.h_coef, self.column_of_row], outputs=[columns],
+                  device=self.device)
+
+    def compliance(self, x: wp.array, scale: float) -> np.ndarray:
+        """``W = scale H X`` against the actuator columns ``X``; ``(rows, columns)``, row ``r``
+        against its own world's columns (a host copy)."""
+        self.W.zero_()
+        wp.launch(kernels.rows_times_columns, (self.num_entries, self.num_columns),
+                  inputs=[self.h_row, self.h_node, self.h_coef, x, scale], outputs=[self.W], device=self.device)
+        return self.W.numpy().copy()
+
+    def predict(self, dx: wp.array) -> wp.array:
+        """``delta_free = delta + H dx`` (device, ``(rows,)``) for one displacement ``dx`` (``(1, n)``
+        vec3d): the rows after the free motion, to first order (linearized where ``A`` is)."""
+        wp.copy(self.delta_free, self.delta, count=self.num_rows)
+        wp.launch(kernels.rows_times_vector, self.num_entries, inputs=[self.h_row, self.h_node, self.h_coef, dx, 0],
+                  outputs=[self.delta_free], device=self.device)
+        return self.delta_free
+
+    def correct(self, dx_free: wp.array, x: wp.array, lam: wp.array, scale: float, dx: wp.array) -> None:
+        """``dx = dx_free + scale X lambda`` (m): ``dx_free`` ``(n,)``, the columns ``x``
+        ``(columns, n)``, ``lam`` per row."""
+        m = self.model
+        wp.launch(kernels.correct_with_columns, m.num_nodes,
+                  inputs=[dx_free, x, lam, m.node_world, self.world_row_start_d, self.world_actuators_d, scale],
+                  outputs=[dx], device=self.device)
+
+    def forces(self, lam: np.ndarray) -> np.ndarray:
+        """Nodal forces ``H^T lambda`` (N), ``(n, 3)``, for multipliers of all rows."""
+        f = wp.zeros(self.model.num_nodes, dtype=wp.vec3d, device=self.device)
+        wp.launch(kernels.rows_transpose_times, self.num_entries,
+                  inputs=[self.h_row, self.h_node, self.h_coef, wp.array(lam, dtype=wp.float64, device=self.device)],
+                  outputs=[f], device=self.device)
+        return f.numpy()
+
+    # ---- geometry for reports and USD -------------------------------------------------------
+    def point_positions(self) -> np.ndarray:
+        """Mapped cable and effector points (m) of the last :meth:`evaluate`, ``(p, 3)``."""
+        return self.points.numpy()[: self.num_points].copy()
+
+    def effector_positions(self, world: int = 0) -> dict[str, np.ndarray]:
+        """Effector points (m) of ``world`` at the last :meth:`evaluate`, by name."""
+        eff = self.kind("effector")
+        if eff is None:
+            return {}
+        pts = self.point_positions()
+        return {p.item.name: pts[p.first_point] for p in eff.placed if p.world == world}
+
+    def targets(self, all_targets: np.ndarray | None, world: int = 0) -> dict[str, np.ndarray]:
+        """The targets (m) of ``world``'s targeted effectors, by name, from :meth:`set_time`'s result."""
+        eff = self.kind("effector")
+        if eff is None or all_targets is None:
+            return {}
+        return {p.item.name: all_targets[k] for k, p in enumerate(eff.placed)
+                if p.world == world and p.item.target is not None}
+
+    def cable_paths(self, world: int = 0) -> dict[str, np.ndarray]:
+        """Cable polylines (m, pull point first) of ``world`` at the last :meth:`evaluate`."""
+        cab = self.kind("cable")
+        return cab.paths(self.point_positions(), world) if cab is not None else {}
+
+
+__all__ = ["ROW_KINDS", "Placed", "RowKind", "Rows"]

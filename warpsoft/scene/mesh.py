@@ -1,0 +1,205 @@
+"""Tetrahedral meshes: validation, boundary surface, transforms, and reading files with meshio."""
+
+from __future__ import annotations
+
+import io
+from contextlib import redirect_stderr, redirect_stdout
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import MeshError
+
+# Faces of a positively oriented tetrahedron (i0, i1, i2, i3), each listed with an outward normal.
+TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]], dtype=np.int64)
+
+
+def signed_volumes(nodes: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """Signed volume (m^3) of each tetrahedron, shape ``(m,)``."""
+    x = nodes[tets]
+    return np.einsum("ij,ij->i", x[:, 1] - x[:, 0], np.cross(x[:, 2] - x[:, 0], x[:, 3] - x[:, 0])) / 6.0
+
+
+@dataclass
+class TetMesh:
+    """A linear tetrahedral mesh.
+
+    Attributes:
+        nodes: rest positions, shape ``(n, 3)``, float64 (m).
+        tets: node ids of each element, shape ``(m, 4)``, int32, positive volumes.
+        name: a label used in error messages.
+    """
+
+    nodes: np.ndarray
+    tets: np.ndarray
+    name: str = "mesh"
+    _surface: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        nodes = np.asarray(self.nodes, dtype=np.float64)
+        tets = np.asarray(self.tets)
+        if nodes.ndim != 2 or nodes.shape[1] != 3 or len(nodes) == 0:
+            raise MeshError(f"mesh '{self.name}': nodes must have shape (n, 3), got {nodes.shape}")
+        if tets.ndim != 2 or tets.shape[1] != 4 or len(tets) == 0:
+            raise MeshError(f"mesh '{self.name}': tets must have shape (m, 4) with m > 0, got {tets.shape}")
+        if not np.issubdtype(tets.dtype, np.integer):
+            raise MeshError(f"mesh '{self.name}': tets must hold integer node ids, got dtype {tets.dtype}")
+        bad = np.flatnonzero(~np.all(np.isfinite(nodes), axis=1))
+        if len(bad):
+            raise MeshError(f"mesh '{self.name}': node {bad[0]} has a non-finite position {nodes[bad[0]].tolist()}")
+        if tets.min() < 0 or tets.max() >= len(nodes):
+            raise MeshError(
+                f"mesh '{self.name}': node ids must lie in [0, {len(nodes) - 1}], got range "
+                f"[{tets.min()}, {tets.max()}]"
+            )
+        vol = signed_volumes(nodes, tets)
+        scale = np.mean(np.abs(vol))
+        tiny = np.flatnonzero(np.abs(vol) <= 1e-9 * scale) if scale > 0 else np.arange(len(vol))
+        if len(tiny):
+            e = tiny[0]
+            raise MeshError(
+                f"mesh '{self.name}': element {e} (nodes {tets[e].tolist()}) has zero volume {vol[e]:.3e} m^3 "
+                f"({len(tiny)} degenerate element(s) in all)"
+            )
+        neg = np.flatnonzero(vol < 0)
+        if len(neg):
+            e = neg[0]
+            raise MeshError(
+                f"mesh '{self.name}': element {e} (nodes {tets[e].tolist()}) has negative volume {vol[e]:.3e} m^3 "
+                f"({len(neg)} inverted element(s)); reorder its nodes or build with TetMesh.oriented(...)"
+            )
+        self.nodes, self.tets = nodes, tets.astype(np.int32)
+
+    @classmethod
+    def oriented(cls, nodes, tets, name: str = "mesh", drop_unused: bool = True) -> TetMesh:
+        """Build a mesh after making every element positively oriented (swapping two nodes of
+        the negative ones) and, by default, dropping nodes no element uses."""
+        nodes = np.asarray(nodes, dtype=np.float64)
+        tets = np.array(tets, dtype=np.int64)
+        if tets.ndim == 2 and tets.shape[1] == 4 and len(tets) and nodes.ndim == 2 and nodes.shape[1:] == (3,):
+            if tets.min() >= 0 and tets.max() < len(nodes):
+                neg = signed_volumes(nodes, tets) < 0
+                tets[neg] = tets[neg][:, [0, 2, 1, 3]]
+                if drop_unused:
+                    used = np.unique(tets)
+                    remap = np.full(len(nodes), -1, dtype=np.int64)
+                    remap[used] = np.arange(len(used))
+                    nodes, tets = nodes[used], remap[tets]
+        return cls(nodes, tets, name=name)
+
+    @property
+    def num_nodes(self) -> int:
+        return len(self.nodes)
+
+    @property
+    def num_elements(self) -> int:
+        return len(self.tets)
+
+    @property
+    def volume(self) -> float:
+        """Total volume (m^3)."""
+        return float(signed_volumes(self.nodes, self.tets).sum())
+
+    def surface(self) -> np.ndarray:
+        """Boundary triangles, outward oriented, shape ``(k, 3)`` (node ids)."""
+        if self._surface is None:
+            faces = self.tets[:, TET_FACES].reshape(-1, 3)
+            key = np.sort(faces, axis=1)
+            _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+            self._surface = faces[counts[inverse.ravel()] == 1].astype(np.int32)
+        return self._surface
+
+    def transformed(self, scale: float = 1.0, rotation=None, translation=(0.0, 0.0, 0.0)) -> TetMesh:
+        """A copy with ``x' = rotation @ (scale * x) + translation`` (rotation: 3x3, det > 0)."""
+        R = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
+        if R.shape != (3, 3) or not np.isclose(np.linalg.det(R), 1.0, atol=1e-6):
+            raise MeshError(f"mesh '{self.name}': rotation must be a 3x3 proper rotation, got {R.tolist()}")
+        if not np.isfinite(scale) or scale <= 0:
+            raise MeshError(f"mesh '{self.name}': scale must be a finite number > 0, got {scale!r}")
+        nodes = scale * self.nodes @ R.T + np.asarray(translation, dtype=float)
+        return TetMesh(nodes, self.tets.copy(), name=self.name)
+
+
+def rotation_about(axis: str, degrees: float) -> np.ndarray:
+    """Rotation matrix about the x, y or z axis (right-handed)."""
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    i = "xyz".index(axis)
+    j, k = (i + 1) % 3, (i + 2) % 3
+    R = np.eye(3)
+    R[j, j], R[j, k], R[k, j], R[k, k] = c, -s, s, c
+    return R
+
+
+def _sniff_format(path: Path) -> str | None:
+    """Return a meshio format name when the content contradicts the extension."""
+    with open(path, "rb") as f:
+        head = f.read(256).lstrip()
+    if path.suffix.lower() == ".vtk" and (head.startswith(b"<?xml") or head.startswith(b"<VTKFile")):
+        return "vtu"  # SoftRobots ships XML VTU content under .vtk names
+    return None
+
+
+def load_mesh(path: str | Path, scale: float = 1.0, name: str | None = None) -> TetMesh:
+    """Read a volume mesh file with meshio and keep its tetrahedra.
+
+    Args:
+        path: any format meshio reads (VTK legacy or XML, MSH, ...).
+        scale: factor from file units to metres (1e-3 for files in mm).
+        name: label for errors; the file name by default.
+
+    Other cell types (vertices, lines, triangles) are ignored; elements are reoriented to
+    positive volume; nodes used by no tetrahedron are dropped. Any reader failure, even a
+    reader that tries to exit the process, becomes a :class:`MeshError`.
+    """
+    import meshio
+
+    path = Path(path)
+    label = name or path.name
+    if not path.is_file():
+        raise MeshError(f"mesh '{label}': no such file {str(path)!r}")
+    if not np.isfinite(scale) or scale <= 0:
+        raise MeshError(f"mesh '{label}': scale must be a finite number > 0, got {scale!r}")
+    fmt = _sniff_format(path)
+    sink = io.StringIO()
+    try:
+        with redirect_stdout(sink), redirect_stderr(sink):
+            m = meshio.read(path, file_format=fmt)
+    except (Exception, SystemExit) as exc:  # meshio's legacy VTK reader calls sys.exit on bad input
+        detail = sink.getvalue().strip().splitlines()
+        why = f"{type(exc).__name__}: {exc}" + (f" ({detail[-1]})" if detail else "")
+        raise MeshError(f"mesh '{label}': cannot read {str(path)!r}: {why}") from None
+    blocks = [c.data for c in m.cells if c.type == "tetra"]
+    if not blocks:
+        kinds = sorted({c.type for c in m.cells}) or ["none"]
+        raise MeshError(f"mesh '{label}': {str(path)!r} holds no tetrahedra (cell types: {', '.join(kinds)})")
+    return TetMesh.oriented(np.asarray(m.points[:, :3], dtype=np.float64) * scale, np.concatenate(blocks), name=label)
+
+
+def save_mesh(mesh: TetMesh, path: str | Path) -> None:
+    """Write the mesh with meshio (format from the extension, e.g. .vtu, .msh)."""
+    import meshio
+
+    meshio.write(path, meshio.Mesh(mesh.nodes, [("tetra", mesh.tets)]))
+
+
+def box_grid(lo, hi, divisions) -> TetMesh:
+    """Structured tetrahedral mesh of the box ``lo``-``hi`` (m): ``divisions = (nx, ny, nz)``
+    cubes, each split into six tetrahedra sharing its main diagonal (conforming, symmetric)."""
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    n = np.asarray(divisions, dtype=int)
+    if lo.shape != (3,) or hi.shape != (3,) or n.shape != (3,) or np.any(n < 1) or np.any(hi <= lo):
+        raise MeshError(f"box_grid: need lo < hi (3 numbers each) and 3 divisions >= 1, got {lo}, {hi}, {n}")
+    axes = [np.linspace(lo[k], hi[k], n[k] + 1) for k in range(3)]
+    X, Y, Z = np.meshgrid(*axes, indexing="ij")
+    nodes = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)
+
+    def nid(i, j, k):
+        return (i * (n[1] + 1) + j) * (n[2] + 1) + k
+
+    i, j, k = (a.ravel() for a in np.meshgrid(*(np.arange(m) for m in n), indexing="ij"))
+    c = [nid(i + (b & 1), j + ((b >> 1) & 1), k + ((b >> 2) & 1)) for b in range(8)]  # cube corners
+    # six tetrahedra around the diagonal c0-c7, one per path of edges 0 -> 7
+    paths = [(1, 3), (1, 5), (2, 3), (2, 6), (4, 5), (4, 6)]
+    tets = np.concatenate([np.stack([c[0], c[a], c[b], c[7]], axis=1) for a, b in paths])
+    return TetMesh.oriented(nodes, tets, name="box_grid", drop_unused=False)

@@ -1,0 +1,127 @@
+"""Geometric selections of nodes (fixed regions, loaded faces, cavity walls).
+
+A region is called with an ``(n, 3)`` array of positions (m) and returns a boolean mask.
+Regions combine with ``|`` (union), ``&`` (intersection) and ``~`` (complement).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SceneError
+
+
+def _vec3(value, what: str) -> np.ndarray:
+    a = np.asarray(value, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise SceneError(f"{what} must be 3 finite numbers, got {value!r}")
+    return a
+
+
+class Region:
+    """Base class: ``region(points) -> bool mask``."""
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def __or__(self, other: Region) -> Region:
+        return _Combined(self, other, np.logical_or, "|")
+
+    def __and__(self, other: Region) -> Region:
+        return _Combined(self, other, np.logical_and, "&")
+
+    def __invert__(self) -> Region:
+        return _Not(self)
+
+
+@dataclass(frozen=True, repr=False)
+class _Combined(Region):
+    a: Region
+    b: Region
+    op: object
+    sym: str
+
+    def __call__(self, points):
+        return self.op(self.a(points), self.b(points))
+
+    def __repr__(self):
+        return f"({self.a!r} {self.sym} {self.b!r})"
+
+
+@dataclass(frozen=True, repr=False)
+class _Not(Region):
+    a: Region
+
+    def __call__(self, points):
+        return ~self.a(points)
+
+    def __repr__(self):
+        return f"~{self.a!r}"
+
+
+class Box(Region):
+    """Axis-aligned box ``lo <= x <= hi`` (m), widened by ``tol`` on every side."""
+
+    def __init__(self, lo, hi, tol: float = 1e-9):
+        self.lo, self.hi = _vec3(lo, "Box.lo"), _vec3(hi, "Box.hi")
+        if np.any(self.hi < self.lo):
+            raise SceneError(f"Box: hi {self.hi.tolist()} must be >= lo {self.lo.tolist()} on every axis")
+        self.tol = float(tol)
+
+    def __call__(self, points):
+        p = np.asarray(points)
+        return np.all((p >= self.lo - self.tol) & (p <= self.hi + self.tol), axis=1)
+
+    def __repr__(self):
+        return f"Box(lo={self.lo.tolist()}, hi={self.hi.tolist()})"
+
+
+class _Oriented(Region):
+    """A plane through ``point`` with unit ``normal`` and a tolerance ``tol`` (m)."""
+
+    def __init__(self, point, normal, tol: float = 1e-6):
+        kind = type(self).__name__
+        self.point = _vec3(point, f"{kind}.point")
+        n = _vec3(normal, f"{kind}.normal")
+        if np.linalg.norm(n) == 0:
+            raise SceneError(f"{kind}.normal must be non-zero")
+        self.normal, self.tol = n / np.linalg.norm(n), float(tol)
+
+    def distance(self, points) -> np.ndarray:
+        """Signed distance (m) along the normal."""
+        return (np.asarray(points) - self.point) @ self.normal
+
+    def __repr__(self):
+        return f"{type(self).__name__}(point={self.point.tolist()}, normal={self.normal.tolist()})"
+
+
+class Plane(_Oriented):
+    """Points within ``tol`` (m) of the plane through ``point`` with normal ``normal``."""
+
+    def __call__(self, points):
+        return np.abs(self.distance(points)) <= self.tol
+
+
+class HalfSpace(_Oriented):
+    """Points on the side of the plane that ``normal`` points away from:
+    ``(x - point) . normal <= tol`` (m)."""
+
+    def __call__(self, points):
+        return self.distance(points) <= self.tol
+
+
+class Sphere(Region):
+    """Points within ``radius`` (m, plus ``tol``) of ``center``."""
+
+    def __init__(self, center, radius: float, tol: float = 1e-9):
+        self.center, self.radius, self.tol = _vec3(center, "Sphere.center"), float(radius), float(tol)
+        if not self.radius > 0:
+            raise SceneError(f"Sphere.radius must be > 0 m, got {radius!r}")
+
+    def __call__(self, points):
+        return np.linalg.norm(np.asarray(points) - self.center, axis=1) <= self.radius + self.tol
+
+    def __repr__(self):
+        return f"Sphere(center={self.center.tolist()}, radius={self.radius})"

@@ -1,0 +1,309 @@
+"""The Scene: what a user writes. Mutable, CPU-side, validated with clear errors.
+
+A scene lists bodies (mesh + material), fixed regions, external loads, probe points,
+gravity, damping and the time discretization. Only what it declares is simulated.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SceneError
+from .cable import Cable
+from .cavity import Cavity
+from .effector import Effector
+from .material import Material
+from .mesh import TetMesh
+from .regions import Region
+
+Vec3 = tuple[float, float, float]
+
+
+def _finite(value, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise SceneError(f"{what} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise SceneError(f"{what} must be finite, got {value!r}")
+    return float(value)
+
+
+def _vec3(value, what: str) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise SceneError(f"{what} must be 3 numbers, got {value!r}") from None
+    if a.shape != (3,):
+        raise SceneError(f"{what} must be 3 numbers, got {value!r}")
+    if not np.all(np.isfinite(a)):
+        raise SceneError(f"{what} must be finite, got {a.tolist()}")
+    return a
+
+
+@dataclass
+class Body:
+    """A deformable body of the scene (do not build directly: use :meth:`Scene.add_body`)."""
+
+    name: str
+    mesh: TetMesh
+    material: Material
+    total_mass: float | None = None
+    overrides: list[tuple[Region, Material]] = field(default_factory=list)
+
+    def set_material(self, region: Region, material: Material) -> Body:
+        """Give the elements whose centroid lies in ``region`` another material."""
+        if not isinstance(material, Material):
+            raise SceneError(f"body '{self.name}': set_material expects a Material, got {material!r}")
+        centroids = self.mesh.nodes[self.mesh.tets].mean(axis=1)
+        if not np.any(region(centroids)):
+            raise SceneError(f"body '{self.name}': set_material region {region!r} contains no element centroid")
+        self.overrides.append((region, material))
+        return self
+
+    def element_materials(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per element ``(mu, lambda, density)`` in Pa, Pa, kg/m^3, each shape ``(m,)``."""
+        m = self.mesh.num_elements
+        mats = [self.material] * m
+        centroids = self.mesh.nodes[self.mesh.tets].mean(axis=1)
+        for region, mat in self.overrides:
+            for e in np.flatnonzero(region(centroids)):
+                mats[e] = mat
+        mu = np.array([mt.lame[0] for mt in mats])
+        lam = np.array([mt.lame[1] for mt in mats])
+        rho = np.array([mt.density for mt in mats])
+        return mu, lam, rho
+
+
+@dataclass
+class Fixture:
+    """Nodes of ``body`` in ``region`` held at their current position along ``axes``."""
+
+    body: Body
+    region: Region
+    axes: str = "xyz"
+
+
+@dataclass
+class Load:
+    """A total external force (N) spread over the body's surface triangles in ``region`` in
+    proportion to area; ``total`` is a 3-vector or a function ``t -> 3-vector`` of time (s)."""
+
+    name: str
+    body: Body
+    region: Region
+    total: np.ndarray | Callable[[float], Vec3]
+
+
+@dataclass
+class Probe:
+    """A named material point (m, rest configuration) whose position is recorded."""
+
+    name: str
+    point: np.ndarray
+
+
+class Scene:
+    """A soft-robot scene.
+
+    Args:
+        name: scene label (report, USD).
+        gravity: acceleration (m/s^2), 3 numbers; zero means no gravity pass.
+        dt: time step (s). In a quasi-static scene it only advances time for loads that
+            depend on time.
+        static: quasi-static (no mass, no damping) instead of implicit dynamics.
+        steps: default number of steps for ``warpsoft run``.
+    """
+
+    def __init__(self, name: str = "scene", gravity: Vec3 = (0.0, 0.0, 0.0), dt: float = 0.01,
+                 static: bool = False, steps: int = 100):
+        self.name = str(name)
+        self.gravity = _vec3(gravity, f"scene '{name}': gravity")
+        self.dt = _finite(dt, f"scene '{name}': dt")
+        if self.dt <= 0:
+            raise SceneError(f"scene '{name}': dt must be > 0 s, got {dt!r}")
+        self.static = bool(static)
+        if int(steps) < 1:
+            raise SceneError(f"scene '{name}': steps must be >= 1, got {steps!r}")
+        self.steps = int(steps)
+        self.bodies: list[Body] = []
+        self.fixtures: list[Fixture] = []
+        self.loads: list[Load] = []
+        self.probes: list[Probe] = []
+        self.cables: list[Cable] = []
+        self.cavities: list[Cavity] = []
+        self.effectors: list[Effector] = []
+        self.rayleigh_mass = 0.0
+        self.rayleigh_stiffness = 0.0
+        self.inverse = False
+        self.inverse_epsilon = 1e-4
+        self.params: dict = {}
+
+    # ---- components -------------------------------------------------------------------
+    def add_body(self, name: str, mesh: TetMesh, material: Material, total_mass: float | None = None) -> Body:
+        """Add a deformable body. ``total_mass`` (kg), if given, sets a uniform density
+        ``total_mass / volume`` in place of the material's."""
+        if any(b.name == name for b in self.bodies):
+            raise SceneError(f"scene '{self.name}': a body named '{name}' exists already")
+        if not isinstance(mesh, TetMesh):
+            raise SceneError(f"body '{name}': mesh must be a TetMesh, got {type(mesh).__name__}")
+        if not isinstance(material, Material):
+            raise SceneError(f"body '{name}': material must be a Material, got {material!r}")
+        if total_mass is not None:
+            total_mass = _finite(total_mass, f"body '{name}': total_mass")
+            if total_mass <= 0:
+                raise SceneError(f"body '{name}': total_mass must be > 0 kg, got {total_mass!r}")
+            material = Material(material.young_modulus, material.poisson_ratio, total_mass / mesh.volume)
+        body = Body(name, mesh, material, total_mass)
+        self.bodies.append(body)
+        return body
+
+    def fix(self, body: Body, region: Region, axes: str = "xyz") -> Fixture:
+        """Hold the nodes of ``body`` in ``region`` along ``axes`` (any of "x", "y", "z")."""
+        self._own(body, "fix")
+        if not axes or any(a not in "xyz" for a in axes) or len(set(axes)) != len(axes):
+            raise SceneError(f"body '{body.name}': fix axes must be a subset of 'xyz', got {axes!r}")
+        if not np.any(region(body.mesh.nodes)):
+            raise SceneError(f"body '{body.name}': fixed region {region!r} selects no node")
+        f = Fixture(body, region, axes)
+        self.fixtures.append(f)
+        return f
+
+    def add_force(self, body: Body, region: Region, total, name: str | None = None) -> Load:
+        """Spread a total force (N) over the surface of ``body`` inside ``region``."""
+        self._own(body, "add_force")
+        name = name or f"load{len(self.loads)}"
+        if not callable(total):
+            total = _vec3(total, f"load '{name}': total force")
+        load = Load(name, body, region, total)
+        load_weights(load)  # validates the region now, not at the first step
+        self.loads.append(load)
+        return load
+
+    def add_probe(self, name: str, point: Vec3) -> Probe:
+        """Record the position of the material point at ``point`` (m, rest configuration)."""
+        if any(p.name == name for p in self.probes):
+            raise SceneError(f"scene '{self.name}': a probe named '{name}' exists already")
+        probe = Probe(str(name), _vec3(point, f"probe '{name}': point"))
+        self.probes.append(probe)
+        return probe
+
+    def add_cable(self, name: str, body: Body, points, pull_point, mode: str = "displacement",
+                  value: float | Callable[[float], float] = 0.0, min_force: float = 0.0, max_force: float = math.inf,
+                  min_displacement: float = -math.inf, max_displacement: float = math.inf,
+                  max_step: float = math.inf) -> Cable:
+        """A cable pulled from the fixed ``pull_point`` (m) through ``points`` ``(k, 3)`` (m) of ``body``.
+
+        ``mode="displacement"``: ``value`` is the shortening (m); ``mode="force"``: the tension
+        (N). Bounds: tension in [min_force >= 0, max_force] N, shortening in
+        [min_displacement, max_displacement] m, at most ``max_step`` m of change per step.
+        """
+        self._own(body, "add_cable")
+        self._new_row_name(name)
+        cable = Cable(name, mode, value, min_force, max_force, min_displacement, max_displacement, max_step,
+                      body=body, points=points, pull_point=pull_point)
+        self.cables.append(cable)
+        return cable
+
+    def add_cavity(self, name: str, body: Body, region: Region | None = None, triangles=None,
+                   mode: str = "pressure", value: float | Callable[[float], float] = 0.0, min_pressure: float = 0.0,
+                   max_pressure: float = math.inf, min_volume_growth: float = -math.inf,
+                   max_volume_growth: float = math.inf, max_step: float = math.inf,
+                   symmetry_planes: list | None = None) -> Cavity:
+        """A pneumatic cavity: the closed void of ``body`` whose boundary lies in ``region``.
+
+        ``mode="pressure"``: ``value`` is the pressure (Pa); ``mode="volume"``: the volume
+        growth (m^3). ``min_pressure < 0`` allows vacuum. In a model cut by symmetry planes
+        (``ws.Plane`` list) the cavity surface may be open along them.
+        """
+        self._own(body, "add_cavity")
+        self._new_row_name(name)
+        modes = {"pressure": "force", "volume": "displacement"}
+        if mode not in modes:
+            raise SceneError(f"cavity '{name}': mode must be 'pressure' or 'volume', got {mode!r}")
+        if (region is None) == (triangles is None):
+            raise SceneError(f"cavity '{name}': give either a region or triangles")
+        cavity = Cavity(name, modes[mode], value, min_pressure, max_pressure, min_volume_growth, max_volume_growth,
+                        max_step, body=body, region=region, triangles=triangles, symmetry_planes=symmetry_planes)
+        cavity.surface()  # validates now: closed and oriented
+        self.cavities.append(cavity)
+        return cavity
+
+    def add_effector(self, name: str, point: Vec3, target=None, axes: str = "xyz", weight: float = 1.0) -> Effector:
+        """A point (m, rest configuration) to place: ``target`` is a 3-vector, a function of time
+        ``t -> 3-vector`` or None (its rest position); ``axes`` selects the controlled axes."""
+        self._new_row_name(name)
+        eff = Effector(name, point, target, axes, weight)
+        self.effectors.append(eff)
+        return eff
+
+    def use_inverse_model(self, epsilon: float = 1e-4) -> None:
+        """Resolve the actuators by the inverse model: each step, the actuation (within its
+        bounds) that brings the effectors closest to their targets. ``epsilon`` weighs the
+        actuation energy relative to the task (see ``warpsoft.inverse``); the actuators' own
+        input values are not used."""
+        epsilon = _finite(epsilon, f"scene '{self.name}': inverse epsilon")
+        if epsilon < 0:
+            raise SceneError(f"scene '{self.name}': inverse epsilon must be >= 0, got {epsilon}")
+        self.inverse, self.inverse_epsilon = True, epsilon
+
+    @property
+    def actuators(self) -> list:
+        """Cables then cavities: the order of the actuator rows."""
+        return [*self.cables, *self.cavities]
+
+    def _new_row_name(self, name: str) -> None:
+        if any(r.name == name for r in [*self.cables, *self.cavities, *self.effectors]):
+            raise SceneError(f"scene '{self.name}': an actuator or effector named '{name}' exists already")
+
+    def set_damping(self, rayleigh_mass: float = 0.0, rayleigh_stiffness: float = 0.0) -> None:
+        """Rayleigh damping ``D = rayleigh_mass M + rayleigh_stiffness K`` (1/s and s)."""
+        a = _finite(rayleigh_mass, f"scene '{self.name}': rayleigh_mass")
+        b = _finite(rayleigh_stiffness, f"scene '{self.name}': rayleigh_stiffness")
+        if a < 0 or b < 0:
+            raise SceneError(f"scene '{self.name}': Rayleigh coefficients must be >= 0, got ({a}, {b})")
+        self.rayleigh_mass, self.rayleigh_stiffness = a, b
+
+    # ---- checks -----------------------------------------------------------------------
+    def _own(self, body: Body, what: str) -> None:
+        if not any(b is body for b in self.bodies):
+            raise SceneError(f"scene '{self.name}': {what} got a body that is not in this scene ({body!r:.60})")
+
+    def validate(self) -> None:
+        """Check the scene as a whole (called when a simulator is built)."""
+        if not self.bodies:
+            raise SceneError(f"scene '{self.name}': it has no body")
+        for body in self.bodies:
+            if self.static:
+                axes = "".join(f.axes for f in self.fixtures if f.body is body)
+                missing = [a for a in "xyz" if a not in axes]
+                if missing:
+                    raise SceneError(
+                        f"scene '{self.name}': quasi-static body '{body.name}' is free along {''.join(missing)} "
+                        "(no fixed region holds that axis): its stiffness is singular"
+                    )
+            elif body.material.density <= 0 and not body.overrides:
+                raise SceneError(f"scene '{self.name}': dynamic body '{body.name}' has density 0 (no mass)")
+        if self.inverse:
+            if not self.actuators:
+                raise SceneError(f"scene '{self.name}': the inverse model needs at least one actuator")
+            if not any(e.target is not None for e in self.effectors):
+                raise SceneError(f"scene '{self.name}': the inverse model needs an effector with a target")
+
+
+def load_weights(load: Load) -> np.ndarray:
+    """Per-node share (sums to 1) of ``load`` over its body's nodes, by surface area."""
+    mesh = load.body.mesh
+    tris = mesh.surface()
+    inside = load.region(mesh.nodes)
+    tris = tris[np.all(inside[tris], axis=1)]
+    if len(tris) == 0:
+        raise SceneError(f"load '{load.name}': region {load.region!r} contains no surface triangle of body "
+                         f"'{load.body.name}'")
+    x = mesh.nodes[tris]
+    area = 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1)
+    w = np.zeros(mesh.num_nodes)
+    np.add.at(w, tris.ravel(), np.repeat(area / 3.0, 3))
+    return w / w.sum()

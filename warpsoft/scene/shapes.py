@@ -1,0 +1,186 @@
+"""Parametric solids (gmsh OpenCASCADE) and their tetrahedral meshing.
+
+Shapes are plain descriptions; nothing touches gmsh until :func:`mesh_shape`. They
+combine with ``a + b`` (union), ``a - b`` (difference) and ``a & b`` (intersection), so a
+robot design is a function of its parameters and a design sweep is a loop.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import MeshError, SceneError
+from .mesh import TetMesh
+
+
+def _check(name: str, **values) -> None:
+    for key, v in values.items():
+        arr = np.atleast_1d(np.asarray(v, dtype=float))
+        if not np.all(np.isfinite(arr)):
+            raise SceneError(f"{name}.{key} must be finite, got {v!r}")
+
+
+class Shape:
+    """A solid; subclasses add themselves to the current gmsh OCC model."""
+
+    def _add(self, occ) -> list[tuple[int, int]]:
+        raise NotImplementedError
+
+    def __add__(self, other: Shape) -> Shape:
+        return Boolean("fuse", self, other)
+
+    def __sub__(self, other: Shape) -> Shape:
+        return Boolean("cut", self, other)
+
+    def __and__(self, other: Shape) -> Shape:
+        return Boolean("intersect", self, other)
+
+
+@dataclass(frozen=True)
+class Box(Shape):
+    """Box with corner ``origin`` and edge lengths ``size`` (m)."""
+
+    origin: tuple[float, float, float]
+    size: tuple[float, float, float]
+
+    def __post_init__(self):
+        _check("Box", origin=self.origin, size=self.size)
+        if min(self.size) <= 0:
+            raise SceneError(f"Box.size must be > 0 on every axis, got {tuple(self.size)}")
+
+    def _add(self, occ):
+        return [(3, occ.addBox(*self.origin, *self.size))]
+
+
+@dataclass(frozen=True)
+class Cylinder(Shape):
+    """Cylinder from ``base`` along ``axis`` (its length is the height) of ``radius`` (m)."""
+
+    base: tuple[float, float, float]
+    axis: tuple[float, float, float]
+    radius: float
+
+    def __post_init__(self):
+        _check("Cylinder", base=self.base, axis=self.axis, radius=self.radius)
+        if self.radius <= 0 or np.linalg.norm(self.axis) == 0:
+            raise SceneError(f"Cylinder: radius {self.radius} and axis length must be > 0")
+
+    def _add(self, occ):
+        return [(3, occ.addCylinder(*self.base, *self.axis, self.radius))]
+
+
+@dataclass(frozen=True)
+class Cone(Shape):
+    """Truncated cone from ``base`` along ``axis``, radius ``r1`` at the base, ``r2`` at the top (m)."""
+
+    base: tuple[float, float, float]
+    axis: tuple[float, float, float]
+    r1: float
+    r2: float
+
+    def __post_init__(self):
+        _check("Cone", base=self.base, axis=self.axis, r1=self.r1, r2=self.r2)
+        if self.r1 < 0 or self.r2 < 0 or max(self.r1, self.r2) == 0 or np.linalg.norm(self.axis) == 0:
+            raise SceneError(f"Cone: radii ({self.r1}, {self.r2}) must be >= 0, not both 0, axis non-zero")
+
+    def _add(self, occ):
+        return [(3, occ.addCone(*self.base, *self.axis, self.r1, self.r2))]
+
+
+@dataclass(frozen=True)
+class Ball(Shape):
+    """Sphere of ``radius`` (m) around ``center``."""
+
+    center: tuple[float, float, float]
+    radius: float
+
+    def __post_init__(self):
+        _check("Ball", center=self.center, radius=self.radius)
+        if self.radius <= 0:
+            raise SceneError(f"Ball.radius must be > 0 m, got {self.radius}")
+
+    def _add(self, occ):
+        return [(3, occ.addSphere(*self.center, self.radius))]
+
+
+@dataclass(frozen=True)
+class Boolean(Shape):
+    """Union, difference or intersection of two shapes."""
+
+    op: str
+    a: Shape
+    b: Shape
+
+    def _add(self, occ):
+        a, b = self.a._add(occ), self.b._add(occ)
+        out, _ = getattr(occ, self.op)(a, b)
+        return [d for d in out if d[0] == 3]
+
+
+def mesh_shape(shape: Shape, mesh_size: float, name: str = "shape", optimize: bool = True,
+               curvature: int = 12) -> TetMesh:
+    """Mesh a shape with linear tetrahedra of characteristic edge length ``mesh_size`` (m).
+
+    ``curvature``: elements per full turn on curved surfaces (refines small radii, down to
+    half of ``mesh_size``); 0 meshes curved and flat surfaces alike.
+
+    If the environment variable ``WARPSOFT_MESH_CACHE`` names a folder, meshes are kept
+    there (keyed by the shape's description and the settings) and read back instead of
+    re-meshed: design sweeps skip gmsh, and machines without gmsh can run prepared scenes.
+    """
+    if not isinstance(shape, Shape):
+        raise SceneError(f"mesh_shape: expected a Shape, got {type(shape).__name__}")
+    if not (isinstance(mesh_size, (int, float)) and math.isfinite(mesh_size) and mesh_size > 0):
+        raise SceneError(f"mesh '{name}': mesh_size must be a finite number > 0 m, got {mesh_size!r}")
+    cache = os.environ.get("WARPSOFT_MESH_CACHE")
+    if cache:
+        key = hashlib.sha1(f"{shape!r}|{float(mesh_size)!r}|{optimize}|{curvature}".encode()).hexdigest()[:16]
+        path = Path(cache) / f"{name}-{key}.npz"
+        if path.is_file():
+            with np.load(path) as data:
+                return TetMesh(data["nodes"], data["tets"], name=name)
+        mesh = _gmsh_mesh(shape, float(mesh_size), name, optimize, curvature)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path, nodes=mesh.nodes, tets=mesh.tets)
+        return mesh
+    return _gmsh_mesh(shape, float(mesh_size), name, optimize, curvature)
+
+
+def _gmsh_mesh(shape: Shape, mesh_size: float, name: str, optimize: bool, curvature: int) -> TetMesh:
+    import gmsh
+
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.Verbosity", 1)
+        gmsh.model.add(name)
+        vols = shape._add(gmsh.model.occ)
+        gmsh.model.occ.synchronize()
+        if not vols:
+            raise MeshError(f"mesh '{name}': the shape has no volume (an empty boolean result?)")
+        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5 * mesh_size)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", mesh_size)
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", int(curvature))
+        gmsh.option.setNumber("Mesh.Optimize", 1 if optimize else 0)
+        gmsh.model.mesh.generate(3)
+        tags, coords, _ = gmsh.model.mesh.getNodes()
+        etypes, _, enodes = gmsh.model.mesh.getElements(3)
+    except MeshError:
+        raise
+    except Exception as exc:
+        raise MeshError(f"mesh '{name}': gmsh failed: {exc}") from None
+    finally:
+        gmsh.finalize()
+    tets = [n for t, n in zip(etypes, enodes, strict=True) if t == 4]
+    if not tets:
+        raise MeshError(f"mesh '{name}': gmsh produced no tetrahedra (mesh_size {mesh_size} too large?)")
+    index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
+    index[tags.astype(np.int64)] = np.arange(len(tags))
+    conn = index[np.concatenate(tets).astype(np.int64).reshape(-1, 4)]
+    return TetMesh.oriented(coords.reshape(-1, 3), conn, name=name)

@@ -1,0 +1,80 @@
+"""What a step did: StepStats (the whole step) and WorldStats (each world's rows)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import SceneError
+
+
+class ConvergenceWarning(UserWarning):
+    """An iterative solve stopped at its iteration cap above its tolerance."""
+
+
+@dataclass
+class WorldStats:
+    """One world's share of a step: the iterations of its linear solve (when the solver counts
+    them per world), its multipliers' resolution (Gauss-Seidel sweeps and last change, or the
+    QP status and time in s), and its rows after the step by name: actuator ``delta`` (cable m,
+    cavity m^3) and ``lambda`` (N, Pa), effector positions and targets (m) and the distance
+    between them on the controlled axes (m)."""
+
+    cg_iterations: int = 0
+    resolve_iterations: int = 0
+    resolve_residual: float = 0.0
+    qp_status: str = ""
+    qp_seconds: float = 0.0
+    effector_error: dict[str, float] = field(default_factory=dict)
+    actuator_delta: dict[str, float] = field(default_factory=dict)
+    actuator_lambda: dict[str, float] = field(default_factory=dict)
+    effectors: dict[str, np.ndarray] = field(default_factory=dict)
+    targets: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def _of_the_world(name: str):
+    def get(self: StepStats):
+        if len(self.worlds) != 1:
+            raise SceneError(f"step stats: {name} belongs to a world; this model has {len(self.worlds)}: "
+                             f"read stats.worlds[w].{name}")
+        return getattr(self.worlds[0], name)
+    get.__doc__ = f"``worlds[0].{name}`` of a one-world model."
+    return property(get)
+
+
+@dataclass
+class StepStats:
+    """What one step did: solver statistics and the wall time (s) of each stage that ran.
+
+    Stages: ``linearize`` (rotations, forces, preconditioner or factorization), ``loads`` (only
+    with time-dependent loads), ``free_solve`` (the right-hand side and, with actuators, their
+    compliance columns ``H^T``, solved together in one batched solve), ``compliance``
+    (``delta_free`` and ``W`` from the solved columns), ``resolve`` (the multipliers),
+    ``correct`` (the correction, the update, the health check). ``cg_iterations`` counts the
+    iterations of that one solve (0 for a direct solve; the most any world needed);
+    ``compliance_iterations`` is the same count when actuators rode along, else 0. ``worlds``
+    holds each world's rows; with one world, its fields read as attributes of the step too
+    (``stats.actuator_delta`` and so on).
+    """
+
+    index: int
+    time: float
+    cg_iterations: int = 0
+    cg_residual: float = 0.0
+    converged: bool = True
+    stages: dict[str, float] = field(default_factory=dict)
+    total: float = 0.0
+    warnings: list[str] = field(default_factory=list)
+    compliance_iterations: int = 0
+    worlds: list[WorldStats] = field(default_factory=list)
+
+    resolve_iterations = _of_the_world("resolve_iterations")
+    resolve_residual = _of_the_world("resolve_residual")
+    qp_status = _of_the_world("qp_status")
+    qp_seconds = _of_the_world("qp_seconds")
+    effector_error = _of_the_world("effector_error")
+    actuator_delta = _of_the_world("actuator_delta")
+    actuator_lambda = _of_the_world("actuator_lambda")
+    effectors = _of_the_world("effectors")
+    targets = _of_the_world("targets")
