@@ -1,12 +1,14 @@
-"""Once per change of the step, on a CUDA machine: the CUDA step equals the CPU one, and the
-captured (graph-replayed) solve equals the uncaptured one.
+"""Once per change of the step, on a CUDA machine: the CUDA step equals the CPU one, the
+captured (graph-replayed) step equals the uncaptured one, and a model of three worlds steps
+each world as it steps alone.
 
     python tools/gpu_check.py [--steps 20] [--scenes scenes/trunk.py ...] [--out out/gpu_check]
 
 For each scene: probe trajectories of (a) ``direct`` on the CPU device, (b) ``pcg`` on CUDA
-with the solve captured as a graph, (c) ``pcg`` on CUDA launched kernel by kernel, (d) ``pcg``
-on CUDA with a float32 dense inverse; the largest probe differences (m) between them, and the
-median CG iterations. Writes gpu_check.json.
+with the step's device part replayed as graphs, (c) ``pcg`` on CUDA launched kernel by kernel,
+(d) ``pcg`` on CUDA with a float32 dense inverse; the largest probe differences (m) between them,
+and the median CG iterations. Then the three worlds of tests/test_worlds.py (an inverse Diamond,
+an inverse Trunk, a Diamond driven directly) on CUDA, together and alone. Writes gpu_check.json.
 """
 
 from __future__ import annotations
@@ -42,6 +44,30 @@ def trajectory(path: str, device: str, solver: str, steps: int, tolerance: float
     return {"probes": np.array(probes), "iterations": float(np.median(its))}
 
 
+def worlds_check(device: str, steps: int = 6) -> dict:
+    """Largest node difference (m) between each world stepped in a 3-world model and alone."""
+    import warpsoft as ws
+
+    diamond, trunk = ROOT / "scenes/diamond.py", ROOT / "scenes/trunk.py"
+
+    def scenes():
+        return [build_scene(diamond, {"mesh_size": 0.02, "mode": "inverse", "circle_period": 0.2}),
+                build_scene(trunk, {"mesh_size": 0.014, "rayleigh_stiffness": 0.1, "period": 0.2}),
+                build_scene(diamond, {"mesh_size": 0.017, "cable_displacements": (0.004, 0.0, 0.002, 0.0),
+                                      "ramp_time": 0.06})]
+    together = ws.Simulator(ws.finalize(scenes(), device), solver="pcg")
+    for _ in range(steps):
+        together.step()
+    row = {}
+    for w, scene in enumerate(scenes()):
+        alone = ws.Simulator(scene, device=device, solver="pcg")
+        for _ in range(steps):
+            alone.step()
+        row[f"world{w}_vs_alone_m"] = float(np.abs(together.positions(w) - alone.positions()).max())
+        row[f"world{w}_motion_m"] = float(np.abs(alone.positions() - alone.model.rest_np).max())
+    return row
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenes", nargs="*", default=SCENES)
@@ -74,6 +100,13 @@ def main(argv=None) -> int:
                                                      - runs["cuda_pcg_nograph"]["probes"]).max())
         summary[path] = row
         print(path, json.dumps(row, indent=1), flush=True)
+    try:
+        summary["worlds"] = worlds_check("cuda")
+        print("worlds", json.dumps(summary["worlds"], indent=1), flush=True)
+    except Exception as exc:
+        ok = False
+        summary["worlds"] = {"error": f"{type(exc).__name__}: {exc}"}
+        traceback.print_exc()
     (out / "gpu_check.json").write_text(json.dumps(summary, indent=1))
     return 0 if ok else 1
 

@@ -42,8 +42,9 @@ class Simulator:
         timing: synchronize the device around stages to time them (CUDA only matters).
         check_every: ``jacobi`` only: the residual is read back every this many iterations
             (default: 1 on the CPU, where reading is free; 16 on CUDA).
-        graphs: on CUDA, replay captured graphs (``pcg``: the whole solve; ``jacobi``: runs of
-            ``check_every`` iterations).
+        graphs: on CUDA, replay captured graphs (``pcg``: the device part of the whole step,
+            one graph, or two around the host QP of the inverse model, stages then timed per graph;
+            ``jacobi``: runs of ``check_every`` iterations).
         factorization: ``direct`` only: "cholmod" (default) or "superlu" (v1's).
         preconditioner: ``pcg`` only: how the warped factorization is applied, "host" (sparse
             solves), "dense" (a dense inverse on the device) or "auto" (dense on CUDA).
@@ -101,6 +102,10 @@ class Simulator:
             self.effector_weights = [np.concatenate([np.full(len(e.axes), e.weight) for e in effs]) if effs
                                      else np.zeros(0) for effs in self.rows.effectors]
         self._stepped = False
+        self.values = None  # the actuator inputs of the current step, (rows,)
+        # on CUDA, the device part of a step is replayed as graphs when the solver allows it
+        self.capture = bool(graphs) and d.is_cuda
+        self.graphs: dict = {}
 
         # One batched solve per step: column 0 is the free solve A dx_free = b, columns 1..
         # the compliance A X = H_a^T of each world's actuators (effectors alone need no column).

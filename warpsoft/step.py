@@ -29,52 +29,47 @@ if TYPE_CHECKING:
 
 
 def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
-    """Advance every world by one step; the state is swapped in only when the step succeeded."""
+    """Advance every world by one step; the state is swapped in only when the step succeeded.
+
+    On CUDA, when the solver allows it, the device part is replayed as CUDA graphs: one for the
+    whole step, or two around the host QP when some world uses the inverse model; statistics are
+    read once, after. Elsewhere the same stages run one by one, each timed.
+    """
     m, rows = sim.model, sim.rows
     stats = StepStats(sim.step_index + 1, sim.time + m.dt, worlds=[WorldStats() for _ in range(m.num_worlds)])
     start = time.perf_counter()
     actuated = rows is not None and rows.num_actuators > 0
-    values = actuator_values(sim, stats.time, controls) if actuated else None  # user schedules, once
+    inverse = actuated and any(s.inverse and rows.world_actuators[w] for w, s in enumerate(m.scenes))
+    host_inputs(sim, stats.time, controls)  # user schedules, evaluated once; uploads only when they change
 
-    with stage(sim, stats, "linearize"):  # rotations, internal forces, preconditioner
-        sim.f_int.zero_()
-        sim.elastic.linearize(sim.state.q, sim.rot, sim.f_int)
-        sim.solver.prepare()
-
-    if m.time_dependent_loads:
-        with stage(sim, stats, "loads"):
-            sim.f_ext.assign(m.external_forces(stats.time) + (m.f_const_np if m.f_const is not None else 0.0))
-
-    with stage(sim, stats, "free_solve"):  # A [dx_free, X] = [b, H_a^T]
-        right_hand_side(sim)
-        if actuated:  # effectors alone need no column: they are measured after
-            # Rows are linearized where A is, at q. Evaluated at the free configuration
-            # instead, H lets a follower load (a pressure) gain energy step after step (the
-            # pneunet oscillated ever wider), and delta(q_free) misses the imposed
-            # displacement by a second-order term (17 % on a bent cable beam); the linear
-            # prediction meets it exactly once the step has converged.
-            rows.set_time(stats.time)  # effector rows measure x - target
-            rows.evaluate(sim.state.q)
-            rows.actuator_columns(sim.columns)
-        solve(sim, stats)
-    dx = sim.dx_free[0]
-
-    if actuated:
-        with stage(sim, stats, "compliance"):  # delta_free = delta(q) + H dx_free; W = s H X
-            delta_free = rows.predict(sim.dx_free)
-            rows.compliance(sim.X, sim.constraint_scale)
-        with stage(sim, stats, "resolve"):  # lambda of every world: direct model or inverse model
-            resolve(sim, stats, values, delta_free)
-
-    with stage(sim, stats, "correct"):  # dx = dx_free + s X lambda; q += dx, v = dx / h
+    if sim.capture and getattr(sim.solver, "capturable", False):
+        if inverse:  # two graphs around the host QP
+            replay(sim, stats, "device_before_qp", lambda: before_resolve(sim, actuated))
+            finish_solve(sim, stats, captured_result(sim))
+            with stage(sim, stats, "resolve"):
+                resolve_inverse(sim, stats)
+            replay(sim, stats, "device_after_qp", lambda: after_resolve(sim, actuated))
+        else:  # the whole step as one graph
+            replay(sim, stats, "device_step", lambda: (before_resolve(sim, actuated), after_resolve(sim, actuated)))
+            finish_solve(sim, stats, captured_result(sim))
+    else:
+        with stage(sim, stats, "linearize"):  # rotations, internal forces, preconditioner
+            linearize(sim)
+        with stage(sim, stats, "free_solve"):  # A [dx_free, X] = [b, H_a^T]
+            free_solve_inputs(sim, actuated)
+            finish_solve(sim, stats, sim.solver.solve(sim.rhs, sim.sol))  # (pcg: the loop is one graph on CUDA)
         if actuated:
-            rows.correct(dx, sim.X, sim.gauss_seidel.lam, sim.constraint_scale, sim.dx)
-            dx = sim.dx
-        wp.launch(integrate.advance, m.num_nodes, inputs=[sim.state.q, dx, 0.0 if m.static else 1.0 / m.dt],
-                  outputs=[sim.next.q, sim.next.v], device=m.device)
-        check_health(sim, stats, dx)
-        if rows is not None:  # rows at the new state: what the report records
-            record_rows(sim, stats, sim.next.q)
+            with stage(sim, stats, "compliance"):  # delta_free = delta(q) + H dx_free; W = s H X
+                compliance(sim)
+            with stage(sim, stats, "resolve"):  # lambda of every world: direct model or inverse model
+                resolve_direct(sim)
+                if inverse:
+                    resolve_inverse(sim, stats)
+        with stage(sim, stats, "correct"):  # dx = dx_free + s X lambda; q += dx, v = dx / h
+            after_resolve(sim, actuated)
+    check_health(sim, stats)
+    if rows is not None:
+        record_rows(sim, stats)  # the rows at the new state: what the report records
 
     sim.state, sim.next = sim.next, sim.state
     sim.time, sim.step_index = stats.time, stats.index
@@ -82,25 +77,99 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     return stats
 
 
+def before_resolve(sim: Simulator, actuated: bool) -> None:
+    """Device work up to the multipliers: linearize, the batched solve, the compliance and the
+    direct model's Gauss-Seidel."""
+    linearize(sim)
+    free_solve_inputs(sim, actuated)
+    sim.solver.run(sim.rhs, sim.sol)
+    if actuated:
+        compliance(sim)
+        resolve_direct(sim)
+
+
+def after_resolve(sim: Simulator, actuated: bool) -> None:
+    """Device work after the multipliers: ``dx = dx_free + s X lambda``, ``q += dx``, ``v = dx / h``,
+    the health check's kernel and the rows at the new state."""
+    m, rows = sim.model, sim.rows
+    dx = sim.dx_free[0]
+    if actuated:
+        rows.correct(dx, sim.X, sim.gauss_seidel.lam, sim.constraint_scale, sim.dx)
+        dx = sim.dx
+    wp.launch(integrate.advance, m.num_nodes, inputs=[sim.state.q, dx, 0.0 if m.static else 1.0 / m.dt],
+              outputs=[sim.next.q, sim.next.v], device=m.device)
+    sim.health_flag.zero_()
+    sim.health_step.zero_()
+    wp.launch(linalg.step_health, m.num_nodes, inputs=[sim.next.q, dx], outputs=[sim.health_flag, sim.health_step],
+              device=m.device)
+    if rows is not None:
+        rows.evaluate(sim.next.q)
+
+
+def captured_result(sim: Simulator):
+    """The batched solve's outcome after a graph ran it (one read); the preconditioner learns it."""
+    res = sim.solver.result()
+    sim.solver.finish(res)
+    return res
+
+
+def replay(sim: Simulator, stats: StepStats, name: str, work) -> None:
+    """Run ``work`` as a CUDA graph: captured once per pair of state buffers (they swap each step)
+    and replayed; timed as the stage ``name``. (On the CPU device, where nothing is captured,
+    ``work`` simply runs: the same flow, for tests.)"""
+    key = (name, sim.state.q.ptr)
+    with stage(sim, stats, name):
+        if not sim.model.device.is_cuda:
+            work()
+            return
+        if key not in sim.graphs:
+            with wp.ScopedCapture(device=sim.model.device) as capture:
+                work()
+            sim.graphs[key] = capture.graph
+        wp.capture_launch(sim.graphs[key])
+
+
 # ---- stages ------------------------------------------------------------------------------
-def right_hand_side(sim: Simulator) -> None:
-    """``b = f_int + f_ext`` (quasi-static) or ``h (f_int + f_ext) + M v`` (dynamic), fixed DOFs 0."""
+def linearize(sim: Simulator) -> None:
+    """Element rotations and internal forces at ``q``; the solver's per-linearization update."""
+    sim.f_int.zero_()
+    sim.elastic.linearize(sim.state.q, sim.rot, sim.f_int)
+    sim.solver.prepare()
+
+
+def free_solve_inputs(sim: Simulator, actuated: bool) -> None:
+    """The batched solve's right-hand sides: ``b = f_int + f_ext`` (quasi-static) or
+    ``h (f_int + f_ext) + M v`` (dynamic), fixed DOFs 0; with actuators, their columns ``H_a^T``."""
     m = sim.model
+    if not sim.warm_start:
+        sim.sol.zero_()
     if m.static:
         wp.launch(integrate.rhs_static, m.num_nodes, inputs=[sim.f_int, sim.f_ext, m.mask], outputs=[sim.b[0]],
                   device=m.device)
     else:
         wp.launch(integrate.rhs_dynamic, m.num_nodes, inputs=[sim.state.v, m.mass, sim.f_int, sim.f_ext, m.dt, m.mask],
                   outputs=[sim.b[0]], device=m.device)
+    if actuated:  # effectors alone need no column: they are measured after
+        # Rows are linearized where A is, at q. Evaluated at the free configuration
+        # instead, H lets a follower load (a pressure) gain energy step after step (the
+        # pneunet oscillated ever wider), and delta(q_free) misses the imposed
+        # displacement by a second-order term (17 % on a bent cable beam); the linear
+        # prediction meets it exactly once the step has converged.
+        sim.rows.evaluate(sim.state.q)
+        sim.rows.actuator_columns(sim.columns)
 
 
-def solve(sim: Simulator, stats: StepStats) -> None:
-    """``A sol = rhs`` for every column (warm start: the last step's ``sol``)."""
+def compliance(sim: Simulator) -> None:
+    """``delta_free = delta(q) + H dx_free`` and ``W = s H X`` (device)."""
+    sim.rows.predict(sim.dx_free)
+    sim.rows.compliance(sim.X, sim.constraint_scale)
+
+
+def finish_solve(sim: Simulator, stats: StepStats, res) -> None:
+    """Record the batched solve (read once, after it ran); a non-finite one is an error, a
+    non-converged one a warning."""
     na = sim.rhs.shape[0] - 1
     what = "free solve" if na == 0 else f"free solve and {na} compliance column{'s' if na > 1 else ''}"
-    if not sim.warm_start:
-        sim.sol.zero_()
-    res = sim.solver.solve(sim.rhs, sim.sol)
     if not math.isfinite(res.residual):
         raise SimulationError(f"step {stats.index} (t = {stats.time:g} s): the {what} met non-finite values "
                               "(NaN or inf in the state, loads or rows); the state before the step is kept")
@@ -115,6 +184,19 @@ def solve(sim: Simulator, stats: StepStats) -> None:
                f"{res.residual:.3e} > tolerance {sim.solver.tolerance:.1e}")
         stats.warnings.append(msg)
         warnings.warn(msg, ConvergenceWarning, stacklevel=4)
+
+
+def host_inputs(sim: Simulator, t: float, controls: list[Control | None]) -> None:
+    """What the user's Python decides for this step, computed once and copied in one go each:
+    time-dependent loads, effector targets, actuator inputs (only when they changed)."""
+    m, rows = sim.model, sim.rows
+    if m.time_dependent_loads:
+        sim.f_ext.assign(m.external_forces(t) + (m.f_const_np if m.f_const is not None else 0.0))
+    if rows is not None:
+        rows.set_time(t)  # effector rows measure x - target
+        if rows.num_actuators:
+            sim.values = actuator_values(sim, t, controls)
+            sim.gauss_seidel.set_values(sim.values)
 
 
 def actuator_values(sim: Simulator, t: float, controls: list[Control | None]) -> np.ndarray:
@@ -135,27 +217,31 @@ def actuator_values(sim: Simulator, t: float, controls: list[Control | None]) ->
     return values
 
 
-def resolve(sim: Simulator, stats: StepStats, values: np.ndarray, delta_free: wp.array) -> None:
-    """Direct-model worlds: projected Gauss-Seidel on the device, all worlds at once. Inverse-model
-    worlds: a QP each on the host, from one read of ``W``, ``delta_free`` and ``delta``."""
+def resolve_direct(sim: Simulator) -> None:
+    """Direct-model worlds: projected Gauss-Seidel on the device, every world at once (inverse
+    worlds are overwritten by their QP)."""
+    rows = sim.rows
+    if any(not s.inverse for s in sim.model.scenes):
+        sim.gauss_seidel.solve(rows.W, rows.delta_free, rows.delta)
+
+
+def resolve_inverse(sim: Simulator, stats: StepStats) -> None:
+    """Inverse-model worlds: a QP each on the host, from one read of ``W``, ``delta_free`` and
+    ``delta``; the multipliers go back in one copy."""
     rows, gs, scenes = sim.rows, sim.gauss_seidel, sim.model.scenes
-    gs.set_values(values)
-    inverse = [w for w, s in enumerate(scenes) if s.inverse and rows.world_actuators[w]]
-    if len(inverse) < len(scenes):
-        gs.solve(rows.W, delta_free, rows.delta)
-    if not inverse:
-        return
-    W, dfree, delta, lam = rows.W.numpy(), delta_free.numpy(), rows.delta.numpy(), gs.lam.numpy().copy()
-    for w in inverse:
-        a, e, scene = rows.actuator_rows(w), rows.effector_rows(w), scenes[w]
+    W, dfree, delta, lam = rows.W.numpy(), rows.delta_free.numpy(), rows.delta.numpy(), gs.lam.numpy().copy()
+    for w, scene in enumerate(scenes):
+        if not (scene.inverse and rows.world_actuators[w]):
+            continue
+        a, e = rows.actuator_rows(w), rows.effector_rows(w)
         na = a.stop - a.start
-        res = solve_inverse(W[a, :na], W[e, :na], dfree[a], dfree[e], row_inputs(gs.host, values, delta, a),
+        res = solve_inverse(W[a, :na], W[e, :na], dfree[a], dfree[e], row_inputs(gs.host, sim.values, delta, a),
                             sim.effector_weights[w], lam[a], scene.inverse_epsilon)
         lam[a] = res.lam
         stats.worlds[w].qp_status, stats.worlds[w].qp_seconds = res.status, res.seconds
         if res.warning:
             stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: {res.warning}")
-    gs.lam.assign(lam)  # the one copy back
+    gs.lam.assign(lam)
 
 
 def row_inputs(host: np.ndarray, values: np.ndarray, delta: np.ndarray, a: slice) -> RowInputs:
@@ -169,13 +255,8 @@ def row_inputs(host: np.ndarray, values: np.ndarray, delta: np.ndarray, a: slice
                      dmin=np.clip(host[k.DMIN, a], lo_step, hi_step), dmax=np.clip(host[k.DMAX, a], lo_step, hi_step))
 
 
-def check_health(sim: Simulator, stats: StepStats, dx: wp.array) -> None:
+def check_health(sim: Simulator, stats: StepStats) -> None:
     """No NaN leaves a step: a non-finite node is an error; a step larger than the model is a warning."""
-    m = sim.model
-    sim.health_flag.zero_()
-    sim.health_step.zero_()
-    wp.launch(linalg.step_health, m.num_nodes, inputs=[sim.next.q, dx], outputs=[sim.health_flag, sim.health_step],
-              device=m.device)
     bad, largest = int(sim.health_flag.numpy()[0]), float(np.sqrt(sim.health_step.numpy()[0]))
     if largest > sim.size:
         stats.warnings.append(f"step {stats.index}: a node moved {largest:.3g} m in one step, more than the "
@@ -189,11 +270,11 @@ def check_health(sim: Simulator, stats: StepStats, dx: wp.array) -> None:
         )
 
 
-def record_rows(sim: Simulator, stats: StepStats, q: wp.array) -> None:
-    """Each world's rows at the new state, by name, and the resolution's statistics (one read each)."""
+def record_rows(sim: Simulator, stats: StepStats) -> None:
+    """Each world's rows at the new state (evaluated on the device by the step), by name, and the
+    Gauss-Seidel statistics: one read of each array."""
     rows = sim.rows
-    targets = rows.set_time(stats.time)
-    rows.evaluate(q)
+    targets = rows.set_time(stats.time)  # the step's targets, already on the device
     delta = rows.delta.numpy()
     lam = sim.gauss_seidel.lam.numpy() if rows.num_actuators else np.zeros(rows.num_rows)
     result = sim.gauss_seidel.result.numpy() if rows.num_actuators else None

@@ -66,6 +66,22 @@ class PCG:
         """Per linearization: update the preconditioner."""
         self.precond.prepare()
 
+    @property
+    def capturable(self) -> bool:
+        """Whether :meth:`prepare` and :meth:`run` of this step can be captured in a larger graph:
+        the preconditioner works on the device and needs no host refactorization this step."""
+        return getattr(self.precond, "capturable", False) and not getattr(self.precond, "stale", False)
+
+    def run(self, b: wp.array, x: wp.array) -> None:
+        """The device part of :meth:`solve`, to be captured inside a step's graph; after the
+        graph ran, read :meth:`result` and pass it to :meth:`finish`."""
+        self._run(b, x)
+
+    def finish(self, res: SolveResult) -> None:
+        """After a solve: tell the preconditioner how many iterations it took (it refreshes its
+        factorization when they grow)."""
+        self.precond.observe(res.iterations)
+
     def solve(self, b: wp.array, x: wp.array) -> SolveResult:
         """Solve in place; ``x`` (``(k, n)`` vec3d) holds the warm start on entry."""
         if self.graph:
@@ -78,7 +94,7 @@ class PCG:
         else:
             self._run(b, x)
         res = self.result()
-        self.precond.observe(res.iterations)
+        self.finish(res)
         return res
 
     def result(self) -> SolveResult:

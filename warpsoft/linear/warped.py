@@ -82,6 +82,11 @@ class WarpedFactor:
         """Device memory of the dense inverse (0 in host mode)."""
         return 0 if self.mode == "host" else self.padded ** 2 * (8 if self.dtype == wp.float64 else 4)
 
+    @property
+    def stale(self) -> bool:
+        """True when the next :meth:`prepare` refactorizes on the host (not capturable)."""
+        return self._stale
+
     def prepare(self) -> None:
         """Per linearization: node rotations from the element rotations; refactorize if due."""
         m = self.op.model

@@ -155,13 +155,12 @@ class Rows:
                   inputs=[self.h_row, self.h_node, self.h_coef, self.column_of_row], outputs=[columns],
                   device=self.device)
 
-    def compliance(self, x: wp.array, scale: float) -> np.ndarray:
-        """``W = scale H X`` against the actuator columns ``X``; ``(rows, columns)``, row ``r``
-        against its own world's columns (a host copy)."""
+    def compliance(self, x: wp.array, scale: float) -> None:
+        """``W = scale H X`` (device) against the actuator columns ``X``; ``(rows, columns)``, row
+        ``r`` against its own world's columns."""
         self.W.zero_()
         wp.launch(kernels.rows_times_columns, (self.num_entries, self.num_columns),
                   inputs=[self.h_row, self.h_node, self.h_coef, x, scale], outputs=[self.W], device=self.device)
-        return self.W.numpy().copy()
 
     def predict(self, dx: wp.array) -> wp.array:
         """``delta_free = delta + H dx`` (device, ``(rows,)``) for one displacement ``dx`` (``(1, n)``

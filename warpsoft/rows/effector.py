@@ -42,12 +42,13 @@ class EffectorRows(RowKind):
         self.row = wp.array(np.array(rows, dtype=np.int32), dtype=wp.int32, device=d)
         self.target = wp.zeros(len(rows), dtype=wp.float64, device=d)
         self.constant = not any(callable(p.item.target) for p in placed)
-        self._targets = None
+        self._targets, self._time = None, None
 
     def set_time(self, t: float) -> np.ndarray:
-        """The targets (m) at time ``t``, ``(effectors, 3)`` in table order, uploaded in one copy
-        (once only when no target depends on time)."""
-        if self._targets is None or not self.constant:
+        """The targets (m) at time ``t``, ``(effectors, 3)`` in table order, uploaded in one copy:
+        the user's functions are called once per time, and once only when none depends on time."""
+        if self._targets is None or (not self.constant and t != self._time):
+            self._time = t
             targets = np.array([p.item.target_at(t) for p in self.placed])
             per_row = np.concatenate([targets[k, p.item.axis_ids] for k, p in enumerate(self.placed)])
             self.target.assign(per_row)
