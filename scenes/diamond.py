@@ -1,6 +1,11 @@
 """The Diamond parallel robot (after SoftRobots.Inverse): one silicone piece, four legs from a
 fixed base out to four corners and four arms up to a top platform; four cables pull the
-corners toward the base. z is up; the effector is the top of the platform."""
+corners toward the base. z is up; the effector is the top of the platform.
+
+``mesh``: a path to SoftRobots.Inverse's own ``diamond.vtk`` (mm) to run its mesh instead of
+the one generated here, placed as SoftRobots places it (+90 deg about x, then +35 mm in z),
+with its exact pull points (0, 10, 30) mm and so on; its cable points lie 0.1-0.5 mm outside
+that mesh and map to their nearest elements, as in SOFA."""
 
 import math
 
@@ -13,7 +18,7 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
           poisson_ratio=0.45, total_mass=0.5, gravity=9.81, dt=0.02, rayleigh_mass=0.1, rayleigh_stiffness=0.1,
           mesh_size=0.01, mode="direct", cable_displacements=(0.0, 0.0, 0.0, 0.0), ramp_time=1.0,
           max_cable_displacement=0.02, max_cable_step=0.001, target=None, circle_radius=0.015, circle_depth=0.003,
-          circle_period=4.0, static=False):
+          circle_period=4.0, static=False, mesh=None):
     """``mode="direct"``: each cable i shortens linearly to ``cable_displacements[i]`` (m) over
     ``ramp_time`` (s). ``mode="inverse"``: the cables follow the effector's ``target`` (x, y, z)
     (m), or by default a circle of ``circle_radius`` (m), ``circle_depth`` (m) below the rest top,
@@ -34,14 +39,20 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
         shape = shape + ws.Ball(tuple(c), 1.3 * leg_radius)
         shape = shape + ws.Cylinder(tuple(hub), tuple(c - hub), leg_radius)
         shape = shape + ws.Cylinder(tuple(c), tuple(top - c), leg_radius)
+    pulls = [0.1 * c * np.array([1.0, 1.0, 0.0]) + np.array([0.0, 0.0, 0.03]) for c in corners]
+    if mesh is None:
+        tets = ws.mesh_shape(shape, mesh_size, name="diamond", curvature=0)
+    else:  # SoftRobots' mesh and placement, its pull points 10 mm from the axis
+        tets = ws.load_mesh(mesh, scale=1e-3).transformed(rotation=ws.rotation_about("x", 90.0),
+                                                           translation=(0.0, 0.0, 0.035))
+        pulls = [0.01 * c / np.linalg.norm(c[:2]) * np.array([1.0, 1.0, 0.0]) + np.array([0.0, 0.0, 0.03])
+                 for c in corners]
     scene = ws.Scene("diamond", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=100)
-    body = scene.add_body("diamond", ws.mesh_shape(shape, mesh_size, name="diamond", curvature=0),
-                          ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
+    body = scene.add_body("diamond", tets, ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
     scene.fix(body, ws.Box((-0.015, -0.015, -0.04), (0.015, 0.015, base_top)))  # SoftRobots' base box
     step = max_cable_step if mode == "inverse" else math.inf
-    for i, (c, d) in enumerate(zip(corners, cable_displacements, strict=True)):
-        pull = 0.1 * c * np.array([1.0, 1.0, 0.0]) + np.array([0.0, 0.0, 0.03])
+    for i, (c, d, pull) in enumerate(zip(corners, cable_displacements, pulls, strict=True)):
         scene.add_cable(f"cable{i}", body, points=[tuple(c)], pull_point=tuple(pull), mode="displacement",
                         value=lambda t, d=d: d * min(t / ramp_time, 1.0), min_displacement=0.0,
                         max_displacement=max_cable_displacement, max_step=step)

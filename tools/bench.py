@@ -8,7 +8,8 @@ with warm-up steps (kernel compilation, the first factorizations) excluded. ``--
 runs v1's default path for the device (CPU: SuperLU direct; CUDA: block-Jacobi CG) and v2's
 (CPU: CHOLMOD direct; CUDA: warped-factorization PCG) in the same run and gives their ratio.
 Per row: CG iterations, kernel launches and host transfers per step (counted in one extra,
-uncaptured step), the launch floor (launches x graph replay cost) and, on CUDA, the peak
+uncaptured step, which also times the stages one by one), the launch floor (launches x graph
+replay cost) and, on CUDA, the peak
 device memory per DOF. Writes bench.json and bench.md.
 """
 
@@ -36,11 +37,13 @@ SCENES = [
     ("pneunet", "scenes/pneunet.py", {}),
     ("diamond", "scenes/diamond.py", {}),
     ("diamond_inverse", "scenes/diamond.py", {"mode": "inverse"}),
+    ("diamond_inverse_softrobots_mesh", "scenes/diamond.py",  # SoftRobots.Inverse's own mesh: 4884 DOFs
+     {"mode": "inverse", "mesh": str(ROOT.parent / "shared" / "reference" / "softrobots" / "diamond.vtk")}),
     ("trunk", "scenes/trunk.py", {}),
 ]
 
 # SOFA SoftRobots, Table 1 of Coevoet et al. 2017 (Intel i5-4590, one thread), ms per step
-PAPER_MS = {"diamond_inverse": 22.0, "trunk": 29.0}
+PAPER_MS = {"diamond_inverse": 22.0, "diamond_inverse_softrobots_mesh": 22.0, "trunk": 29.0}
 
 # v1 and v2 per device: the solver (and options) each release used by default there
 CONFIGS = {
@@ -86,14 +89,17 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
     for _ in range(warmup):
         sim.step()
     stats = [sim.step() for _ in range(steps)]
-    # one more step, uncaptured, to count what a step launches and moves (graphs replay the same kernels)
-    graph = getattr(sim.solver, "graph", None)
+    # one more step, uncaptured, to count what a step launches and moves (graphs replay the same
+    # kernels) and to time its stages one by one (a captured step is timed per graph)
+    graph, capture = getattr(sim.solver, "graph", None), sim.capture
     if graph is not None:
         sim.solver.graph = False
+    sim.capture = False
     with Counter() as counter:
-        sim.step()
+        uncaptured = sim.step()
     if graph is not None:
         sim.solver.graph = graph
+    sim.capture = capture
     m, cs = sim.model, sim.rows
     stages = sorted({k for s in stats for k in s.stages})
     d = wp.get_device(device)
@@ -106,6 +112,7 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
         "model": "inverse" if scene.inverse else "direct", "static": m.static,
         "step_ms": {k: 1e3 * v for k, v in percentiles([s.total for s in stats]).items() if k != "count"},
         "stages_ms": {k: 1e3 * float(np.median([s.stages.get(k, 0.0) for s in stats])) for k in stages},
+        "stages_uncaptured_ms": {k: 1e3 * v for k, v in uncaptured.stages.items()},
         "cg_iterations_median": float(np.median([s.cg_iterations for s in stats])),
         "launches_per_step": counter.launches, "host_transfers_per_step": counter.transfers,
         "launch_floor_ms": 1e-3 * LAUNCH_FLOOR_US * counter.launches,
@@ -116,14 +123,16 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
 
 
 def markdown(rows: list[dict]) -> str:
-    head = ("| scene | config | model | DOFs | solver | step median (ms) | p90 (ms) | stages, median (ms) | CG its "
-            "| launches / transfers per step | launch floor (ms) | bytes/DOF | paper (ms) |")
-    out = [head, "|" + "---|" * 13]
+    head = ("| scene | config | model | DOFs | solver | step median (ms) | p90 (ms) | stages, median (ms) "
+            "| stages, one uncaptured step (ms) | CG its | launches / transfers per step | launch floor (ms) "
+            "| bytes/DOF | paper (ms) |")
+    out = [head, "|" + "---|" * 14]
     for r in rows:
         st = ", ".join(f"{k} {v:.2f}" for k, v in r["stages_ms"].items())
+        un = ", ".join(f"{k} {v:.2f}" for k, v in r["stages_uncaptured_ms"].items())
         mem = "" if r["peak_device_bytes_per_dof"] is None else f"{r['peak_device_bytes_per_dof']:.0f}"
         out.append(f"| {r['scene']} | {r['config']} | {r['model']} | {r['dofs']} | {r['solver']} | "
-                   f"{r['step_ms']['median']:.2f} | {r['step_ms']['p90']:.2f} | {st} | "
+                   f"{r['step_ms']['median']:.2f} | {r['step_ms']['p90']:.2f} | {st} | {un} | "
                    f"{r['cg_iterations_median']:.0f} | "
                    f"{r['launches_per_step']} / {r['host_transfers_per_step']} | {r['launch_floor_ms']:.2f} | {mem} | "
                    f"{PAPER_MS.get(r['scene'], '')} |")
