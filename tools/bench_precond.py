@@ -19,7 +19,8 @@ from warpsoft.io.runner import build_scene
 from warpsoft.linear import WarpedFactor
 
 ROOT = Path(__file__).resolve().parents[1]
-VARIANTS = [(32, 64, 128), (16, 64, 128), (8, 64, 64), (8, 128, 128), (4, 128, 64), (16, 128, 256)]
+VARIANTS = [(8, 128, 128, 1), (8, 128, 128, 2), (8, 128, 128, 4), (8, 64, 128, 8), (16, 64, 128, 4),
+            (4, 128, 64, 4), (32, 64, 256, 4), (16, 128, 256, 2)]  # rows, inner, threads, splits
 BANDWIDTH = 4.0e12  # bytes/s, about what an H200 streams from its memory
 
 

@@ -102,25 +102,32 @@ def flat_rotations(dtype):
 _dense_products = {}
 
 
-def dense_product(columns: int, dtype, tile_m: int = 32, tile_k: int = 64):
+def dense_product(columns: int, dtype, tile_m: int = 32, tile_k: int = 64, splits: int = 1):
     """Kernel ``Y = A U`` for a dense square ``A`` ``(N, N)`` and ``U`` ``(N, columns)``,
-    one thread block per ``tile_m`` rows, ``N`` a multiple of ``tile_m`` and ``tile_k``.
-    Launch with ``wp.launch_tiled(kernel, dim=[N // tile_m], ...)``. Tile shapes are
-    compile-time constants, hence one kernel per (columns, dtype, tiles), cached."""
-    key = (columns, dtype, tile_m, tile_k)
+    one thread block per ``tile_m`` rows and per ``1/splits`` of the inner dimension, ``N`` a
+    multiple of ``tile_m`` and of ``splits * tile_k``. Launch with
+    ``wp.launch_tiled(kernel, dim=[N // tile_m, splits], ...)``; with ``splits > 1`` the blocks add
+    their partial products into ``Y``, which must be zero before (more blocks in flight: the
+    product is bound by how fast ``A`` streams in). Tile shapes are compile-time constants, hence
+    one kernel per (columns, dtype, tiles, splits), cached."""
+    key = (columns, dtype, tile_m, tile_k, splits)
     if key in _dense_products:
         return _dense_products[key]
-    TM, TK, TN = tile_m, tile_k, columns
+    TM, TK, TN, S = tile_m, tile_k, columns, splits
 
     @wp.kernel(module="unique")
     def product(A: wp.array2d(dtype=dtype), U: wp.array2d(dtype=dtype), Y: wp.array2d(dtype=dtype)):
-        i = wp.tid()
+        i, s = wp.tid()
         acc = wp.tile_zeros(shape=(TM, TN), dtype=dtype)
-        for kk in range(A.shape[1] // TK):
+        chunk = A.shape[1] // (TK * S)
+        for kk in range(s * chunk, (s + 1) * chunk):
             a = wp.tile_load(A, shape=(TM, TK), offset=(i * TM, kk * TK))
             u = wp.tile_load(U, shape=(TK, TN), offset=(kk * TK, 0))
             wp.tile_matmul(a, u, acc)
-        wp.tile_store(Y, acc, offset=(i * TM, 0))
+        if wp.static(S == 1):
+            wp.tile_store(Y, acc, offset=(i * TM, 0))
+        else:
+            wp.tile_atomic_add(Y, acc, offset=(i * TM, 0))
 
     _dense_products[key] = product
     return product

@@ -29,7 +29,7 @@ from .operator import SystemOperator
 
 MODES = ("auto", "host", "dense")
 DENSE_LIMIT = 12000  # free DOFs above which "auto" does not keep a dense inverse (1.2 GB in float64)
-TILES = (8, 128, 128)  # dense product: rows per block, columns per tile, threads (tools/bench_precond.py)
+TILES = (8, 128, 128, 1)  # dense product: rows per block, columns per tile, threads, splits (tools/bench_precond.py)
 
 
 class WarpedFactor:
@@ -39,11 +39,12 @@ class WarpedFactor:
         mode: "host", "dense", or "auto" (dense on CUDA up to ``DENSE_LIMIT`` free DOFs).
         precision: "float64" or "float32", of the dense inverse only.
         refresh_ratio, refresh_floor: when to refactorize (see the module doc).
-        tiles: the dense product's (rows per block, columns per tile, threads per block).
+        tiles: the dense product's (rows per block, columns per tile, threads per block, splits of
+            the inner dimension; 1 if left out).
     """
 
     def __init__(self, operator: SystemOperator, columns: int, mode: str = "auto", precision: str = "float64",
-                 refresh_ratio: float = 2.0, refresh_floor: int = 40, tiles: tuple[int, int, int] = TILES):
+                 refresh_ratio: float = 2.0, refresh_floor: int = 40, tiles: tuple[int, ...] = TILES):
         if mode not in MODES:
             raise ValueError(f"WarpedFactor: mode must be one of {MODES}, got {mode!r}")
         if precision not in ("float64", "float32"):
@@ -68,13 +69,14 @@ class WarpedFactor:
             self.y = wp.zeros((self.columns, n), dtype=wp.vec3d, device=d)
         else:
             self.dtype = wp.float64 if precision == "float64" else wp.float32
-            self.tiles = tuple(int(t) for t in tiles)
-            step = np.lcm(self.tiles[0], self.tiles[1])
+            self.tiles = (*(int(t) for t in tiles), 1)[:4]
+            step = np.lcm(self.tiles[0], self.tiles[1] * self.tiles[3])
             self.padded = int(-(-3 * n // step) * step)
             self.inverse = None
             self.u = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
             self.y = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
-            self._product = kernels.dense_product(self.columns, self.dtype, self.tiles[0], self.tiles[1])
+            self._product = kernels.dense_product(self.columns, self.dtype, self.tiles[0], self.tiles[1],
+                                                  self.tiles[3])
             self._rotate_in, self._rotate_out = kernels.flat_rotations(self.dtype)
 
     @property
@@ -129,8 +131,10 @@ class WarpedFactor:
         shape = r.shape
         if self.mode == "dense":
             wp.launch(self._rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
-            wp.launch_tiled(self._product, dim=[self.padded // self.tiles[0]], inputs=[self.inverse, self.u],
-                            outputs=[self.y], block_dim=self.tiles[2], device=d)
+            if self.tiles[3] > 1:
+                self.y.zero_()  # the splits add into it
+            wp.launch_tiled(self._product, dim=[self.padded // self.tiles[0], self.tiles[3]],
+                            inputs=[self.inverse, self.u], outputs=[self.y], block_dim=self.tiles[2], device=d)
             wp.launch(self._rotate_out, shape, inputs=[self.y, self.q_rot, m.mask], outputs=[z], device=d)
             return
         wp.launch(kernels.rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
