@@ -156,8 +156,11 @@ class Simulator:
         return f" (world {world})" if self.model.num_worlds > 1 else ""
 
     def forget_warm_starts(self) -> None:
-        """A poisoned warm start would spoil the next attempt."""
+        """A poisoned warm start would spoil the next attempt: the solutions and, since a captured
+        step runs to its end before its result is read, the multipliers too."""
         self.sol.zero_()
+        if self.rows is not None:
+            self.gauss_seidel.lam.zero_()
 
     # ---- what a step leaves ----------------------------------------------------------------
     @property
