@@ -18,6 +18,7 @@ import warp as wp
 
 from warpsoft.kernels import integrate
 from warpsoft.kernels.linear import cg as linalg
+from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
 
 from .errors import SceneError, SimulationError
 from .resolve import RowInputs, solve_inverse
@@ -247,10 +248,8 @@ def resolve_inverse(sim: Simulator, stats: StepStats) -> None:
 def row_inputs(host: np.ndarray, values: np.ndarray, delta: np.ndarray, a: slice) -> RowInputs:
     """The inputs of actuator rows ``a`` for the host solvers, displacement bounds narrowed to the
     change allowed this step (as the device Gauss-Seidel does)."""
-    from warpsoft.kernels.resolve import gauss_seidel as k
-
-    step_ = host[k.MAX_STEP, a]
-    lo_step, hi_step = delta[a] - step_, delta[a] + step_
+    k = gs_kernels
+    lo_step, hi_step = delta[a] - host[k.MAX_STEP, a], delta[a] + host[k.MAX_STEP, a]
     return RowInputs(force_mode=host[k.FORCE_MODE, a] != 0, value=values[a], lo=host[k.LO, a], hi=host[k.HI, a],
                      dmin=np.clip(host[k.DMIN, a], lo_step, hi_step), dmax=np.clip(host[k.DMAX, a], lo_step, hi_step))
 
@@ -276,13 +275,14 @@ def record_rows(sim: Simulator, stats: StepStats) -> None:
     rows = sim.rows
     targets = rows.set_time(stats.time)  # the step's targets, already on the device
     delta = rows.delta.numpy()
+    points = rows.point_positions()
     lam = sim.gauss_seidel.lam.numpy() if rows.num_actuators else np.zeros(rows.num_rows)
     result = sim.gauss_seidel.result.numpy() if rows.num_actuators else None
     for w, ws in enumerate(stats.worlds):
         a, acts = rows.actuator_rows(w), rows.actuators[w]
         ws.actuator_delta = {x.name: float(v) for x, v in zip(acts, delta[a], strict=True)}
         ws.actuator_lambda = {x.name: float(v) for x, v in zip(acts, lam[a], strict=True)}
-        ws.effectors = rows.effector_positions(w)
+        ws.effectors = rows.effector_positions(w, points)
         ws.targets = rows.targets(targets, w)
         ws.effector_error = {e.name: float(np.linalg.norm((ws.effectors[e.name] - ws.targets[e.name])[e.axis_ids]))
                              for e in rows.effectors[w] if e.target is not None}

@@ -104,16 +104,12 @@ class Rows:
             col[starts[w]:starts[w] + counts[w]] = np.arange(counts[w])
         self.column_of_row = wp.array(col, dtype=wp.int32, device=d)
         self.W = wp.zeros((self.num_rows, max(self.num_columns, 1)), dtype=wp.float64, device=d)
-        self._change = wp.zeros((self.num_rows, 1), dtype=wp.float64, device=d)
         self.delta_free = wp.zeros(max(self.num_rows, 1), dtype=wp.float64, device=d)
 
     # ---- what a world holds ---------------------------------------------------------------
     def kind(self, name: str) -> RowKind | None:
         """The block of row kind ``name`` ("cable", "cavity", "effector"), or None."""
         return next((k for k in self.kinds if k.name == name), None)
-
-    def world_rows(self, world: int) -> slice:
-        return slice(int(self.world_row_start[world]), int(self.world_row_start[world + 1]))
 
     def actuator_rows(self, world: int) -> slice:
         s = int(self.world_row_start[world])
@@ -191,12 +187,13 @@ class Rows:
         """Mapped cable and effector points (m) of the last :meth:`evaluate`, ``(p, 3)``."""
         return self.points.numpy()[: self.num_points].copy()
 
-    def effector_positions(self, world: int = 0) -> dict[str, np.ndarray]:
-        """Effector points (m) of ``world`` at the last :meth:`evaluate`, by name."""
+    def effector_positions(self, world: int = 0, points: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Effector points (m) of ``world`` at the last :meth:`evaluate`, by name (from ``points``,
+        a :meth:`point_positions` already read, when given: one read serves every world)."""
         eff = self.kind("effector")
         if eff is None:
             return {}
-        pts = self.point_positions()
+        pts = self.point_positions() if points is None else points
         return {p.item.name: pts[p.first_point] for p in eff.placed if p.world == world}
 
     def targets(self, all_targets: np.ndarray | None, world: int = 0) -> dict[str, np.ndarray]:
