@@ -80,8 +80,18 @@ class Counter:
         self.wp.launch, self.wp.launch_tiled, self.wp.array.numpy, self.wp.array.assign = self._saved
 
 
+def kernel_table(results) -> list[dict]:
+    """Per kernel (or copy) name: launches and summed device time (us) in one step, largest first."""
+    table: dict[str, dict] = {}
+    for r in results:
+        e = table.setdefault(r.name, {"name": r.name, "launches": 0, "us": 0.0})
+        e["launches"] += 1
+        e["us"] += 1e3 * r.elapsed
+    return sorted(table.values(), key=lambda e: -e["us"])
+
+
 def measure(name: str, path: str, params: dict, device: str, solver: str, steps: int, warmup: int,
-            **options) -> dict:
+            profile: bool = False, **options) -> dict:
     import warp as wp
 
     scene = build_scene(ROOT / path, params)
@@ -95,8 +105,14 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
     if graph is not None:
         sim.solver.graph = False
     sim.capture = False
+    kernels = None
     with Counter() as counter:
-        uncaptured = sim.step()
+        if profile and wp.get_device(device).is_cuda:  # device time of each kernel and copy of this step
+            wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMCPY | wp.TIMING_MEMSET)
+            uncaptured = sim.step()
+            kernels = kernel_table(wp.timing_end())
+        else:
+            uncaptured = sim.step()
     if graph is not None:
         sim.solver.graph = graph
     sim.capture = capture
@@ -118,7 +134,7 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
         "launch_floor_ms": 1e-3 * LAUNCH_FLOOR_US * counter.launches,
         "peak_device_bytes_per_dof": None if peak is None else peak / m.num_dofs,
         "refreshes": getattr(getattr(sim.solver, "precond", None), "refreshes", None),
-        "steps": steps, "warmup": warmup,
+        "steps": steps, "warmup": warmup, "kernels": kernels,
     }
 
 
@@ -147,6 +163,22 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(out) + "\n"
 
 
+def kernels_markdown(rows: list[dict]) -> str:
+    """One table per run: the uncaptured step's kernels and copies by device time."""
+    out = []
+    for r in rows:
+        if not r.get("kernels"):
+            continue
+        total = sum(k["us"] for k in r["kernels"])
+        out += [f"## {r['scene']} ({r['config']}, {r['solver']}): {total:.0f} us of device time in "
+                f"{sum(k['launches'] for k in r['kernels'])} launches and copies", "",
+                "| kernel or copy | launches | us | us per launch |", "|---|---|---|---|"]
+        out += [f"| {k['name']} | {k['launches']} | {k['us']:.1f} | {k['us'] / k['launches']:.1f} |"
+                for k in r["kernels"]]
+        out.append("")
+    return "\n".join(out)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--device", default="cpu")
@@ -156,7 +188,9 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup", type=int, default=2)
     ap.add_argument("--scenes", nargs="*", default=None, help="names from SCENES (default: all)")
     ap.add_argument("--out", default="out/bench")
-    ap.add_argument("--precision", choices=["float64", "float32"], default="float64",
+    ap.add_argument("--kernels", action="store_true",
+                    help="CUDA: time each kernel and copy of the uncaptured step (kernels.md)")
+    ap.add_argument("--precision", choices=["float32", "float64"], default="float32",
                     help="pcg's dense warped inverse")
     args = ap.parse_args(argv)
     kind = "cuda" if args.device.startswith("cuda") else "cpu"
@@ -173,7 +207,7 @@ def main(argv=None) -> int:
         for config, solver, options in runs:
             t0 = time.perf_counter()
             rows.append({"config": config} | measure(name, path, params, args.device, solver, args.steps, args.warmup,
-                                                     **options))
+                                                     profile=args.kernels, **options))
             r = rows[-1]
             print(f"{name:16s} {config} {r['solver']:6s} {r['dofs']:6d} DOFs  median {r['step_ms']['median']:8.2f} ms"
                   f"  p90 {r['step_ms']['p90']:8.2f} ms  its {r['cg_iterations_median']:.0f}  launches "
@@ -186,6 +220,8 @@ def main(argv=None) -> int:
     (out / "bench.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
     (out / "bench.md").write_text(f"{meta['date']}, device {meta['device']}, `{meta['command']}`\n\n"
                                   + markdown(rows))
+    if args.kernels:
+        (out / "kernels.md").write_text(kernels_markdown(rows))
     print((out / "bench.md").read_text())
     return 0
 
