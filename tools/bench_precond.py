@@ -1,5 +1,6 @@
-"""Cost of one application of the warped preconditioner's dense inverse on CUDA, per tile
-shape and precision, replayed from a graph, against its floor (the inverse's bytes / bandwidth).
+"""Cost of one application of the warped preconditioner's dense inverse on CUDA, per product
+(streamed or tiled), its shape and precision, replayed from a graph, against its floor (the
+inverse's bytes / bandwidth).
 
     python tools/bench_precond.py [--scene scenes/diamond.py] [--columns 5] [--repeat 200]
 """
@@ -19,8 +20,10 @@ from warpsoft.io.runner import build_scene
 from warpsoft.linear import WarpedFactor
 
 ROOT = Path(__file__).resolve().parents[1]
-VARIANTS = [(8, 128, 128, 1), (8, 128, 128, 2), (8, 128, 128, 4), (8, 64, 128, 8), (16, 64, 128, 4),
-            (4, 128, 64, 4), (32, 64, 256, 4), (16, 128, 256, 2)]  # rows, inner, threads, splits
+VARIANTS = [("tiles", (8, 128, 128, 1)), ("tiles", (8, 128, 128, 4)),  # rows, inner, threads, splits
+            ("stream", (64, 4, 0)), ("stream", (32, 4, 1)), ("stream", (32, 4, 2)), ("stream", (32, 4, 4)),
+            ("stream", (16, 4, 2)), ("stream", (64, 4, 2)), ("stream", (16, 8, 4)), ("stream", (64, 4, 4)),
+            ("stream", (128, 4, 4))]  # segments, unrolled loads, numbers per load (0: the default)
 BANDWIDTH = 4.0e12  # bytes/s, about what an H200 streams from its memory
 
 
@@ -29,6 +32,7 @@ def main(argv=None) -> int:
     ap.add_argument("--scene", default="scenes/diamond.py")
     ap.add_argument("--columns", type=int, default=5)
     ap.add_argument("--repeat", type=int, default=200)
+    ap.add_argument("--products", nargs="*", default=["stream", "tiles"])
     args = ap.parse_args(argv)
     sim = Simulator(build_scene(ROOT / args.scene), device="cuda", solver="direct")
     sim.step()
@@ -38,8 +42,9 @@ def main(argv=None) -> int:
     print(f"{args.scene}: {3 * n} DOFs, {args.columns} columns")
     for precision in ("float64", "float32"):
         ref = None
-        for tiles in VARIANTS:
-            pre = WarpedFactor(sim.operator, args.columns, "dense", precision, tiles=tiles)
+        for product, shape in [v for v in VARIANTS if v[0] in args.products]:
+            pre = WarpedFactor(sim.operator, args.columns, "dense", precision, product=product,
+                               **{"tiles" if product == "tiles" else "stream": shape})
             pre.prepare()
             pre.apply(r, z)
             with wp.ScopedCapture(device=d) as cap:
@@ -55,7 +60,8 @@ def main(argv=None) -> int:
             out = z.numpy()
             ref = out if ref is None else ref
             floor = pre.memory_bytes / BANDWIDTH
-            print(f"  {precision} tiles {tiles}: {1e6 * np.median(times):8.1f} us per apply "
+            shown = pre.stream if product == "stream" else shape
+            print(f"  {precision} {product} {shown}: {1e6 * np.median(times):8.1f} us per apply "
                   f"(floor {1e6 * floor:.1f} us),"
                   f" max diff to first {np.abs(out - ref).max():.2e}", flush=True)
     return 0

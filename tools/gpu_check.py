@@ -30,7 +30,7 @@ RUNS = {
     "cpu_direct": ("cpu", "direct", {}),
     "cuda_pcg_graph": ("cuda", "pcg", {}),
     "cuda_pcg_nograph": ("cuda", "pcg", {"graphs": False}),
-    "cuda_pcg_fp32": ("cuda", "pcg", {"precision": "float32"}),
+    "cuda_pcg_fp64": ("cuda", "pcg", {"precision": "float64"}),
 }
 
 

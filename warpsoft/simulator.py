@@ -16,6 +16,7 @@ from .elastic import element_model
 from .errors import SceneError, SimulationError
 from .linear import SOLVERS, SystemOperator, choose, make_solver
 from .model import Model
+from .readback import Readback
 from .resolve import GaussSeidel, kinematic_jacobian
 from .rows import Rows
 from .scene import Scene
@@ -48,13 +49,15 @@ class Simulator:
         factorization: ``direct`` only: "cholmod" (default) or "superlu" (v1's).
         preconditioner: ``pcg`` only: how the warped factorization is applied, "host" (sparse
             solves), "dense" (a dense inverse on the device) or "auto" (dense on CUDA).
-        precision: ``pcg`` with a dense inverse: "float64" or "float32".
+        precision: ``pcg`` with a dense inverse: its storage, "float32" (default: half the memory
+            and bytes per iteration; the CG itself runs in float64, so the solution meets the
+            same tolerance, at the cost of 0-2 more iterations on the reference scenes) or "float64".
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
                  tolerance: float = 1e-6, max_iterations: int = 2000, warm_start: bool = True,
                  timing: bool = True, check_every: int | None = None, graphs: bool = True,
-                 factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float64"):
+                 factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32"):
         if solver not in SOLVERS:
             raise SceneError(f"Simulator: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         if not (0.0 < float(tolerance) < 1.0):
@@ -117,6 +120,20 @@ class Simulator:
             self.columns, self.X = self.rhs[1:], self.sol[1:]
         self.solver = make_solver(self.solver_name, self.operator, 1 + ncol, tolerance, max_iterations, graphs,
                                   check_every, factorization, preconditioner, precision)
+
+        # what the host reads of a step, in one transfer each: before the inverse model's QP, and
+        # after the step (the solver's outcome, health, rows at the new state)
+        after = {"health_flag": self.health_flag, "health_step": self.health_step}
+        after |= getattr(self.solver, "readback_arrays", dict)()
+        self.before_qp = None
+        if self.rows is not None:
+            after["delta"], after["points"] = self.rows.delta, self.rows.points
+            if self.rows.num_actuators:
+                gs = self.gauss_seidel
+                after |= {"lam": gs.lam, "resolve": gs.result}
+                self.before_qp = Readback({"W": self.rows.W, "delta_free": self.rows.delta_free,
+                                           "delta": self.rows.delta, "lam": gs.lam}, d)
+        self.after_step = Readback(after, d)
 
     # ---- the step ------------------------------------------------------------------------
     def step(self, control: Control | Sequence[Control | None] | None = None) -> StepStats:

@@ -33,8 +33,9 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     """Advance every world by one step; the state is swapped in only when the step succeeded.
 
     On CUDA, when the solver allows it, the device part is replayed as CUDA graphs: one for the
-    whole step, or two around the host QP when some world uses the inverse model; statistics are
-    read once, after. Elsewhere the same stages run one by one, each timed.
+    whole step, or two around the host QP when some world uses the inverse model. Elsewhere the
+    same stages run one by one, each timed. Either way the host reads the step in one transfer
+    (and one more before the QP): see ``readback.py``.
     """
     m, rows = sim.model, sim.rows
     stats = StepStats(sim.step_index + 1, sim.time + m.dt, worlds=[WorldStats() for _ in range(m.num_worlds)])
@@ -45,14 +46,17 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
 
     if sim.capture and getattr(sim.solver, "capturable", False):
         if inverse:  # two graphs around the host QP
-            replay(sim, stats, "device_before_qp", lambda: before_resolve(sim, actuated))
-            finish_solve(sim, stats, captured_result(sim))
+            replay(sim, stats, "device_before_qp", lambda: (before_resolve(sim, actuated), sim.before_qp.gather()))
             with stage(sim, stats, "resolve"):
-                resolve_inverse(sim, stats)
-            replay(sim, stats, "device_after_qp", lambda: after_resolve(sim, actuated))
+                resolve_inverse(sim, stats, sim.before_qp.read())
+            replay(sim, stats, "device_after_qp", lambda: (after_resolve(sim, actuated), sim.after_step.gather()))
         else:  # the whole step as one graph
-            replay(sim, stats, "device_step", lambda: (before_resolve(sim, actuated), after_resolve(sim, actuated)))
-            finish_solve(sim, stats, captured_result(sim))
+            replay(sim, stats, "device_step", lambda: (before_resolve(sim, actuated), after_resolve(sim, actuated),
+                                                       sim.after_step.gather()))
+        host = sim.after_step.read()
+        res = sim.solver.result(host)
+        sim.solver.finish(res)  # the preconditioner learns the iterations (solve() does it itself)
+        finish_solve(sim, stats, res)
     else:
         with stage(sim, stats, "linearize"):  # rotations, internal forces, preconditioner
             linearize(sim)
@@ -65,12 +69,15 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
             with stage(sim, stats, "resolve"):  # lambda of every world: direct model or inverse model
                 resolve_direct(sim)
                 if inverse:
-                    resolve_inverse(sim, stats)
+                    sim.before_qp.gather()
+                    resolve_inverse(sim, stats, sim.before_qp.read())
         with stage(sim, stats, "correct"):  # dx = dx_free + s X lambda; q += dx, v = dx / h
             after_resolve(sim, actuated)
-    check_health(sim, stats)
+            sim.after_step.gather()
+            host = sim.after_step.read()
+    check_health(sim, stats, host)
     if rows is not None:
-        record_rows(sim, stats)  # the rows at the new state: what the report records
+        record_rows(sim, stats, host)  # the rows at the new state: what the report records
 
     sim.state, sim.next = sim.next, sim.state
     sim.time, sim.step_index = stats.time, stats.index
@@ -105,13 +112,6 @@ def after_resolve(sim: Simulator, actuated: bool) -> None:
               device=m.device)
     if rows is not None:
         rows.evaluate(sim.next.q)
-
-
-def captured_result(sim: Simulator):
-    """The batched solve's outcome after a graph ran it (one read); the preconditioner learns it."""
-    res = sim.solver.result()
-    sim.solver.finish(res)
-    return res
 
 
 def replay(sim: Simulator, stats: StepStats, name: str, work) -> None:
@@ -226,11 +226,11 @@ def resolve_direct(sim: Simulator) -> None:
         sim.gauss_seidel.solve(rows.W, rows.delta_free, rows.delta)
 
 
-def resolve_inverse(sim: Simulator, stats: StepStats) -> None:
-    """Inverse-model worlds: a QP each on the host, from one read of ``W``, ``delta_free`` and
-    ``delta``; the multipliers go back in one copy."""
+def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
+    """Inverse-model worlds: a QP each on the host, from ``W``, ``delta_free``, ``delta`` and
+    ``lambda`` read in one transfer (``host``); the multipliers go back in one copy."""
     rows, gs, scenes = sim.rows, sim.gauss_seidel, sim.model.scenes
-    W, dfree, delta, lam = rows.W.numpy(), rows.delta_free.numpy(), rows.delta.numpy(), gs.lam.numpy().copy()
+    W, dfree, delta, lam = host["W"], host["delta_free"], host["delta"], host["lam"]
     for w, scene in enumerate(scenes):
         if not (scene.inverse and rows.world_actuators[w]):
             continue
@@ -254,9 +254,9 @@ def row_inputs(host: np.ndarray, values: np.ndarray, delta: np.ndarray, a: slice
                      dmin=np.clip(host[k.DMIN, a], lo_step, hi_step), dmax=np.clip(host[k.DMAX, a], lo_step, hi_step))
 
 
-def check_health(sim: Simulator, stats: StepStats) -> None:
+def check_health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
     """No NaN leaves a step: a non-finite node is an error; a step larger than the model is a warning."""
-    bad, largest = int(sim.health_flag.numpy()[0]), float(np.sqrt(sim.health_step.numpy()[0]))
+    bad, largest = int(host["health_flag"][0]), float(np.sqrt(host["health_step"][0]))
     if largest > sim.size:
         stats.warnings.append(f"step {stats.index}: a node moved {largest:.3g} m in one step, more than the "
                               f"model's size {sim.size:.3g} m: the simulation is likely unstable")
@@ -269,15 +269,14 @@ def check_health(sim: Simulator, stats: StepStats) -> None:
         )
 
 
-def record_rows(sim: Simulator, stats: StepStats) -> None:
+def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
     """Each world's rows at the new state (evaluated on the device by the step), by name, and the
-    Gauss-Seidel statistics: one read of each array."""
+    Gauss-Seidel statistics, from the step's read (``host``)."""
     rows = sim.rows
     targets = rows.set_time(stats.time)  # the step's targets, already on the device
-    delta = rows.delta.numpy()
-    points = rows.point_positions()
-    lam = sim.gauss_seidel.lam.numpy() if rows.num_actuators else np.zeros(rows.num_rows)
-    result = sim.gauss_seidel.result.numpy() if rows.num_actuators else None
+    delta, points = host["delta"], host["points"][: rows.num_points]
+    lam = host["lam"] if rows.num_actuators else np.zeros(rows.num_rows)
+    result = host["resolve"] if rows.num_actuators else None
     for w, ws in enumerate(stats.worlds):
         a, acts = rows.actuator_rows(w), rows.actuators[w]
         ws.actuator_delta = {x.name: float(v) for x, v in zip(acts, delta[a], strict=True)}

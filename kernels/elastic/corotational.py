@@ -61,9 +61,9 @@ def stiffness_product(
     scale: wp.float64,
     y: wp.array2d(dtype=wp.vec3d),
 ):
-    """``y[c] += scale * K x[c]`` for every column ``c``, element by element with
-    ``K_e = R (V B^T C B) R^T``: each element's data is read once for all columns."""
-    e = wp.tid()
+    """``y[c] += scale * K x[c]``, one thread per column ``c`` and element ``e``, with
+    ``K_e = R (V B^T C B) R^T`` (launched over ``(k, elements)``)."""
+    c, e = wp.tid()
     t = tets[e]
     Di = dm_inv[e]
     R = rot[e]
@@ -72,16 +72,14 @@ def stiffness_product(
     g1 = shape_gradient(Di, 1)
     g2 = shape_gradient(Di, 2)
     g3 = shape_gradient(Di, 3)
-    s = scale * volume[e]
-    for c in range(x.shape[0]):
-        G = (wp.outer(Rt * x[c, t[0]], g0) + wp.outer(Rt * x[c, t[1]], g1) + wp.outer(Rt * x[c, t[2]], g2)
-             + wp.outer(Rt * x[c, t[3]], g3))
-        eps = wp.float64(0.5) * (G + wp.transpose(G))
-        P = s * (R * hooke(eps, mu[e], lam[e]))
-        wp.atomic_add(y, c, t[0], P * g0)
-        wp.atomic_add(y, c, t[1], P * g1)
-        wp.atomic_add(y, c, t[2], P * g2)
-        wp.atomic_add(y, c, t[3], P * g3)
+    G = (wp.outer(Rt * x[c, t[0]], g0) + wp.outer(Rt * x[c, t[1]], g1) + wp.outer(Rt * x[c, t[2]], g2)
+         + wp.outer(Rt * x[c, t[3]], g3))
+    eps = wp.float64(0.5) * (G + wp.transpose(G))
+    P = (scale * volume[e]) * (R * hooke(eps, mu[e], lam[e]))
+    wp.atomic_add(y, c, t[0], P * g0)
+    wp.atomic_add(y, c, t[1], P * g1)
+    wp.atomic_add(y, c, t[2], P * g2)
+    wp.atomic_add(y, c, t[3], P * g3)
 
 
 @wp.func

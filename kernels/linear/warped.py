@@ -131,3 +131,78 @@ def dense_product(columns: int, dtype, tile_m: int = 32, tile_k: int = 64, split
 
     _dense_products[key] = product
     return product
+
+
+# ---- the streaming product: a symmetric A read down its columns, for a few right-hand sides ----
+# Y = A U with A = A^T: the thread of (segment s, rows i..i+W-1) sums A[j, i..i+W-1] U[j, :] over
+# the rows j of its segment. Neighbouring threads read neighbouring addresses of one row of A
+# (coalesced, W numbers per load), U[j, :] (k numbers) is the same for the whole warp, and the
+# segments put enough independent loads in flight to stream A at memory bandwidth. Partial sums
+# go to P[s, :, i]; the rotation back adds them in a fixed order (the result does not depend on
+# scheduling).
+
+_streams = {}
+
+
+def stream_kernels(columns: int, dtype, segments: int = 32, unroll: int = 4, width: int = 1):
+    """``(wide, rotate_in, partial_product, rotate_out)``: ``vector(W, dtype)`` and the kernels of
+    the streaming product for ``k = columns`` right-hand sides in precision ``dtype`` (``U`` is ``(N, k)``, ``P`` is
+    ``(S, k, N)`` with ``S = segments``; row ``3 i + a`` holds DOF ``a`` of node ``i``).
+
+    - ``rotate_in(r, q_rot, mask, U)``, over ``(k, n)``: ``U[3 i + a, c] = (mask_i Q_i^T r[c, i])_a``;
+    - ``partial_product(A, U, segment, P)``, over ``(S, N / W)`` with ``W = width``:
+      ``P[s, :, i] = sum_j A[j, i] U[j, :]`` over the ``segment`` rows ``j`` of segment ``s``
+      (``segment`` a multiple of ``unroll``, ``S * segment = N``), ``A`` given as an ``(N, N / W)``
+      array of ``vector(W, dtype)`` (the same memory: ``W`` neighbouring numbers per load);
+    - ``rotate_out(P, q_rot, mask, z)``, over ``(k, n)``: ``z[c, i] = mask_i Q_i (sum_s P[s, c, 3 i + a])``.
+    """
+    key = (columns, dtype, segments, unroll, width)
+    if key in _streams:
+        return _streams[key]
+    K, S, UN, W = columns, segments, unroll, width
+    G = 8 if S % 8 == 0 else 1  # partials added 8 at a time: their loads go out together
+    wide = wp.types.vector(length=W, dtype=dtype)
+    sums = wp.types.matrix(shape=(W, K), dtype=dtype)
+
+    @wp.kernel(module="unique")
+    def stream_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
+                         mask: wp.array(dtype=wp.vec3d), U: wp.array2d(dtype=dtype)):
+        c, i = wp.tid()
+        v = wp.cw_mul(mask[i], wp.transpose(q_rot[i]) * r[c, i])
+        U[3 * i, c] = dtype(v[0])
+        U[3 * i + 1, c] = dtype(v[1])
+        U[3 * i + 2, c] = dtype(v[2])
+
+    @wp.kernel(module="unique")
+    def stream_partial_product(A: wp.array2d(dtype=wide), U: wp.array2d(dtype=dtype), segment: int,
+                               P: wp.array3d(dtype=dtype)):
+        s, i = wp.tid()
+        acc = sums()
+        j = s * segment
+        end = j + segment
+        while j < end:
+            for u in range(UN):  # unrolled: UN independent loads of A in flight per thread
+                a = A[j + u, i]
+                for c in range(K):
+                    uc = U[j + u, c]
+                    for w in range(W):
+                        acc[w, c] = acc[w, c] + a[w] * uc
+            j += UN
+        for c in range(K):
+            for w in range(W):
+                P[s, c, W * i + w] = acc[w, c]  # coalesced: neighbouring threads, neighbouring rows
+
+    @wp.kernel(module="unique")
+    def stream_rotate_out(P: wp.array3d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
+                          mask: wp.array(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d)):
+        c, i = wp.tid()
+        y = wp.vec3d()
+        for g in range(S // G):
+            for u in range(G):  # unrolled
+                s = g * G + u
+                y += wp.vec3d(wp.float64(P[s, c, 3 * i]), wp.float64(P[s, c, 3 * i + 1]),
+                              wp.float64(P[s, c, 3 * i + 2]))
+        z[c, i] = wp.cw_mul(mask[i], q_rot[i] * y)
+
+    _streams[key] = (wide, stream_rotate_in, stream_partial_product, stream_rotate_out)
+    return _streams[key]

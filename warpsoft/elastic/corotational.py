@@ -39,8 +39,8 @@ class Corotational:
     def apply(self, x: wp.array, y: wp.array, rot: wp.array, scale: float) -> None:
         """``y[c] += scale K x[c]`` for ``(k, n)`` vec3d ``x`` and ``y`` (N per m of ``x``)."""
         m = self.model
-        wp.launch(kernels.stiffness_product, m.num_elements, inputs=[x, m.tets, *self._material(), rot, scale],
-                  outputs=[y], device=m.device)
+        wp.launch(kernels.stiffness_product, (x.shape[0], m.num_elements),
+                  inputs=[x, m.tets, *self._material(), rot, scale], outputs=[y], device=m.device)
 
     def diagonal(self, rot: wp.array, diag: wp.array) -> None:
         """Accumulate the 3x3 diagonal blocks of ``K`` (N/m) per node into ``diag`` ``(n,)`` mat33d."""

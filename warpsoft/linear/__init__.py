@@ -35,7 +35,7 @@ def choose(name: str, device) -> str:
 
 def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: float = 1e-6,
                 max_iterations: int = 2000, graphs: bool = True, check_every: int | None = None,
-                factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float64"):
+                factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32"):
     """A solver for ``columns`` right-hand sides: ``name`` from :data:`SOLVERS` (``auto`` resolved
     by :func:`choose`). ``check_every`` is v1's residual read-back period (``jacobi`` only);
     ``factorization`` is the direct solver's; ``preconditioner`` ("auto", "host", "dense") and

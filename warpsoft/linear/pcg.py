@@ -1,10 +1,11 @@
 """Preconditioned conjugate gradient for ``k`` right-hand sides at once, the loop on the device.
 
-Every quantity of an iteration stays on the device: the CG scalars per column live in
-``scal`` and the stopping test is a one-thread kernel that clears a device flag, which
-``wp.capture_while`` loops on. On CUDA the whole solve (start, loop, stop) is captured once
-as a graph with a conditional node and replayed; the host reads the iteration count and the
-residuals once, after the solve. On the CPU device the same code runs the loop directly.
+Every quantity of an iteration stays on the device: the CG scalars per column and world live
+in ``scal``, and the kernel that rolls them over also sets the device flag that
+``wp.capture_while`` loops on while some column has not converged. On CUDA the whole solve
+(start, loop, stop) is captured once as a graph with a conditional node and replayed; the host
+reads the iteration count and the residuals once, after the solve. On the CPU device the same
+code runs the loop directly.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from warpsoft.kernels.linear import cg as linalg
+from warpsoft.kernels.linear import cg as slots
+from warpsoft.kernels.linear import pcg as kernels
 
 from .operator import SystemOperator
 
@@ -57,7 +59,7 @@ class PCG:
         self.graph = bool(graph) and m.device.is_cuda and getattr(preconditioner, "capturable", False)
         shape = (int(columns), m.num_nodes)
         self.r, self.z, self.p, self.ap = (wp.zeros(shape, dtype=wp.vec3d, device=m.device) for _ in range(4))
-        self.scal = wp.zeros((shape[0], m.num_worlds, linalg.NUM_SCALARS), dtype=wp.float64, device=m.device)
+        self.scal = wp.zeros((shape[0], m.num_worlds, slots.NUM_SCALARS), dtype=wp.float64, device=m.device)
         self.info = wp.zeros(2, dtype=wp.int32, device=m.device)
         self.active = wp.zeros(1, dtype=wp.int32, device=m.device)
         self._graphs = {}
@@ -97,47 +99,51 @@ class PCG:
         self.finish(res)
         return res
 
-    def result(self) -> SolveResult:
-        """Iterations and residual of the last solve (one read of a few numbers)."""
-        info, s = self.info.numpy(), self.scal.numpy()
-        its = int(info[linalg.ITERATIONS])
-        b2, r2 = s[:, :, linalg.B2], s[:, :, linalg.R2_LAST]  # (columns, worlds)
-        if info[linalg.NONFINITE] or not (np.all(np.isfinite(b2)) and np.all(np.isfinite(r2))):
+    def readback_arrays(self) -> dict[str, wp.array]:
+        """The device arrays :meth:`result` reads (a step gathers them with its other reads)."""
+        return {"info": self.info, "scal": self.scal}
+
+    def result(self, host: dict[str, np.ndarray] | None = None) -> SolveResult:
+        """Iterations and residual of the last solve, from ``host`` (the arrays of
+        :meth:`readback_arrays`, already read) or by reading them."""
+        info, s = (host["info"], host["scal"]) if host is not None else (self.info.numpy(), self.scal.numpy())
+        its = int(info[kernels.ITERATIONS])
+        b2, r2 = s[:, :, slots.B2], s[:, :, slots.R2_LAST]  # (columns, worlds)
+        if info[kernels.NONFINITE] or not (np.all(np.isfinite(b2)) and np.all(np.isfinite(r2))):
             return SolveResult(its, math.nan, False)
         rel = np.divide(np.sqrt(np.maximum(r2, 0.0)), np.sqrt(b2), out=np.zeros_like(b2), where=b2 > 0).max(axis=0)
-        done = s[:, :, linalg.DONE] > 0
-        world_its = np.where(done, s[:, :, linalg.ITS], its).max(axis=0).astype(int)
+        world_its = s[:, :, slots.ITS].max(axis=0).astype(int)
         residual = float(rel.max())
         return SolveResult(its, residual, residual <= self.tolerance, world_its, rel)
 
     def _run(self, b: wp.array, x: wp.array) -> None:
         m, d, shape = self.op.model, self.op.model.device, self.r.shape
-        wp.launch(linalg.project, shape, inputs=[m.mask], outputs=[x], device=d)
+        k, n = shape
+        wp.launch(slots.project, shape, inputs=[m.mask], outputs=[x], device=d)
         self.op.apply(x, self.ap)
         self.scal.zero_()
         self.info.zero_()
-        wp.launch(linalg.pcg_residual, shape, inputs=[b, self.ap, m.mask, self.r, m.node_world], outputs=[self.scal],
-                  device=d)
+        self.active.zero_()
+        kernels.launch_nodes(kernels.pcg_residual, k, n, [b, self.ap, m.mask, self.r, m.node_world, self.scal], d)
         self.precond.apply(self.r, self.z)
-        wp.launch(linalg.pcg_begin, shape, inputs=[self.r, self.z, x, self.p, m.node_world], outputs=[self.scal],
-                  device=d)
-        self._check(0)
+        kernels.launch_nodes(kernels.pcg_begin, k, n, [self.r, self.z, x, self.p, m.node_world, self.scal], d)
+        self._scalars(0)
         wp.capture_while(self.active, self._iteration, x=x)
 
     def _iteration(self, x: wp.array) -> None:
         """One iteration: ``A p``, ``alpha``, ``x``, ``r``, ``z = P^-1 r``, ``beta``, ``p``, stop test."""
-        m, d, shape = self.op.model, self.op.model.device, self.r.shape
+        m, d = self.op.model, self.op.model.device
+        k, n = self.r.shape
         self.op.apply(self.p, self.ap)
-        wp.launch(linalg.cg_curvature, shape, inputs=[self.p, self.ap, m.mask, m.node_world], outputs=[self.scal],
-                  device=d)
-        wp.launch(linalg.pcg_update, shape, inputs=[x, self.r, self.p, self.ap, m.node_world], outputs=[self.scal],
-                  device=d)
+        kernels.launch_nodes(kernels.pcg_curvature, k, n, [self.p, self.ap, m.mask, m.node_world, self.scal], d)
+        kernels.launch_nodes(kernels.pcg_update, k, n, [x, self.r, self.p, self.ap, m.node_world, self.scal], d)
         self.precond.apply(self.r, self.z)
-        wp.launch(linalg.pcg_rz, shape, inputs=[self.r, self.z, m.node_world], outputs=[self.scal], device=d)
-        wp.launch(linalg.cg_scalars, self.scal.shape[:2], inputs=[self.scal], device=d)
-        wp.launch(linalg.cg_direction, shape, inputs=[self.z, self.p, m.node_world, self.scal], device=d)
-        self._check(1)
+        kernels.launch_nodes(kernels.pcg_rz, k, n, [self.r, self.z, m.node_world, self.scal], d)
+        wp.launch(kernels.pcg_direction, (k, n), inputs=[self.z, self.p, m.node_world, self.scal],
+                  outputs=[self.active], device=d)
+        self._scalars(1)
 
-    def _check(self, done: int) -> None:
-        wp.launch(linalg.pcg_check, 1, inputs=[self.scal, self.tolerance, self.max_iterations, done],
-                  outputs=[self.info, self.active], device=self.op.model.device)
+    def _scalars(self, advance: int) -> None:
+        wp.launch(kernels.pcg_scalars, self.scal.shape[:2],
+                  inputs=[self.scal, self.tolerance, self.max_iterations, advance], outputs=[self.info, self.active],
+                  device=self.op.model.device)

@@ -8,9 +8,11 @@ Jacobi needs 577.
 ``A_f^-1`` is applied in one of two ways:
 - ``host``: CHOLMOD triangular solves on the host (the CPU device, where device memory is
   host memory; on CUDA it would cost a round trip per iteration);
-- ``dense``: ``A_f^-1`` kept as a dense ``(N, N)`` matrix on the device and applied by a tiled
-  product (a GPU reads it at memory bandwidth, and the loop can be captured as one graph).
-  Built once from the factorization; its memory is ``8 N^2`` bytes (``4 N^2`` in float32).
+- ``dense``: ``A_f^-1`` kept as a dense ``(N, N)`` matrix on the device (a GPU reads it at
+  memory bandwidth, and the loop can be captured as one graph). Built from the factorization;
+  its memory is ``8 N^2`` bytes (``4 N^2`` in float32). Its product with the ``k`` columns is
+  either ``stream`` (the symmetric matrix read down its columns, the inner dimension cut into
+  segments) or ``tiles`` (tiled matrix product); ``tools/bench_precond.py`` measures both.
 
 The factorization is refreshed at the current state when a solve needs more than
 ``refresh_ratio`` times the iterations of the first solve after the last refresh (and more
@@ -28,8 +30,12 @@ from .assembly import Assembly, CholmodFactor, solve_dofs
 from .operator import SystemOperator
 
 MODES = ("auto", "host", "dense")
+PRODUCTS = ("stream", "tiles")
 DENSE_LIMIT = 12000  # free DOFs above which "auto" does not keep a dense inverse (1.2 GB in float64)
-TILES = (8, 128, 128, 1)  # dense product: rows per block, columns per tile, threads, splits (tools/bench_precond.py)
+TILES = (8, 128, 128, 1)  # tiled product: rows per block, columns per tile, threads, splits (tools/bench_precond.py)
+# streaming product: segments of the inner dimension, loads in flight per thread, numbers per load (0: 4 in
+# float64, 2 in float32); the fastest measured on the Diamond and the Trunk (tools/bench_precond.py)
+STREAM = (64, 4, 0)
 
 
 class WarpedFactor:
@@ -37,18 +43,24 @@ class WarpedFactor:
         operator: the system (rotations, scales, model).
         columns: number of right-hand sides ``k`` of the solves it serves.
         mode: "host", "dense", or "auto" (dense on CUDA up to ``DENSE_LIMIT`` free DOFs).
-        precision: "float64" or "float32", of the dense inverse only.
+        precision: "float32" or "float64", of the dense inverse only (it preconditions a float64 CG).
         refresh_ratio, refresh_floor: when to refactorize (see the module doc).
-        tiles: the dense product's (rows per block, columns per tile, threads per block, splits of
+        product: the dense product, "stream" or "tiles".
+        tiles: the tiled product's (rows per block, columns per tile, threads per block, splits of
             the inner dimension; 1 if left out).
+        stream: the streaming product's (segments of the inner dimension, unrolled loads, numbers
+            per load: 0 for the measured default of the precision).
     """
 
-    def __init__(self, operator: SystemOperator, columns: int, mode: str = "auto", precision: str = "float64",
-                 refresh_ratio: float = 2.0, refresh_floor: int = 40, tiles: tuple[int, ...] = TILES):
+    def __init__(self, operator: SystemOperator, columns: int, mode: str = "auto", precision: str = "float32",
+                 refresh_ratio: float = 2.0, refresh_floor: int = 40, product: str = "stream",
+                 tiles: tuple[int, ...] = TILES, stream: tuple[int, int] = STREAM):
         if mode not in MODES:
             raise ValueError(f"WarpedFactor: mode must be one of {MODES}, got {mode!r}")
         if precision not in ("float64", "float32"):
             raise ValueError(f"WarpedFactor: precision must be 'float64' or 'float32', got {precision!r}")
+        if product not in PRODUCTS:
+            raise ValueError(f"WarpedFactor: product must be one of {PRODUCTS}, got {product!r}")
         m = operator.model
         d = m.device
         self.op, self.columns = operator, int(columns)
@@ -69,15 +81,27 @@ class WarpedFactor:
             self.y = wp.zeros((self.columns, n), dtype=wp.vec3d, device=d)
         else:
             self.dtype = wp.float64 if precision == "float64" else wp.float32
-            self.tiles = (*(int(t) for t in tiles), 1)[:4]
-            step = np.lcm(self.tiles[0], self.tiles[1] * self.tiles[3])
-            self.padded = int(-(-3 * n // step) * step)
-            self.inverse = None
-            self.u = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
-            self.y = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
-            self._product = kernels.dense_product(self.columns, self.dtype, self.tiles[0], self.tiles[1],
-                                                  self.tiles[3])
-            self._rotate_in, self._rotate_out = kernels.flat_rotations(self.dtype)
+            self.product, self.inverse = product, None
+            if product == "tiles":
+                self.tiles = (*(int(t) for t in tiles), 1)[:4]
+                step = np.lcm(self.tiles[0], self.tiles[1] * self.tiles[3])
+                self.padded = int(-(-3 * n // step) * step)
+                self.u = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
+                self.y = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
+                self._product = kernels.dense_product(self.columns, self.dtype, self.tiles[0], self.tiles[1],
+                                                      self.tiles[3])
+                self._rotate_in, self._rotate_out = kernels.flat_rotations(self.dtype)
+            else:
+                segments, unroll, width = (*(int(t) for t in stream), 0)[:3]
+                if width <= 0:
+                    width = 4 if self.dtype == wp.float64 else 2
+                self.stream = (segments, unroll, width)
+                step = np.lcm(segments * unroll, width)
+                self.padded = int(-(-3 * n // step) * step)
+                self.segment = self.padded // segments
+                self._wide, *self._stream = kernels.stream_kernels(self.columns, self.dtype, segments, unroll, width)
+                self.u = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
+                self.partials = wp.zeros((segments, self.columns, self.padded), dtype=self.dtype, device=d)
 
     @property
     def memory_bytes(self) -> int:
@@ -110,9 +134,14 @@ class WarpedFactor:
         if self.mode == "dense":
             free = self.assembly.free
             dense = np.zeros((self.padded, self.padded))
-            dense[np.ix_(free, free)] = self.factor.solve(np.eye(len(free)))
+            inv = self.factor.solve(np.eye(len(free)))
+            dense[np.ix_(free, free)] = 0.5 * (inv + inv.T)  # symmetric to round-off; made exact
             if self.inverse is None:
                 self.inverse = wp.array(dense, dtype=self.dtype, device=m.device)
+                if self.product == "stream":  # the same memory, W numbers per element
+                    w = self.stream[2]
+                    self._inverse_wide = wp.array(ptr=self.inverse.ptr, dtype=self._wide,
+                                                  shape=(self.padded, self.padded // w), device=m.device)
             else:  # in place: a captured solve graph holds this buffer's address
                 self.inverse.assign(dense.astype(np.float64 if self.dtype == wp.float64 else np.float32))
         self.refreshes += 1
@@ -129,6 +158,13 @@ class WarpedFactor:
         """``z = Q A_f^-1 Q^T r`` for ``(k, n)`` vec3d arrays, fixed DOFs 0."""
         m, d = self.op.model, self.op.model.device
         shape = r.shape
+        if self.mode == "dense" and self.product == "stream":
+            rotate_in, partial_product, rotate_out = self._stream
+            wp.launch(rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
+            wp.launch(partial_product, (self.stream[0], self.padded // self.stream[2]),
+                      inputs=[self._inverse_wide, self.u, self.segment], outputs=[self.partials], device=d)
+            wp.launch(rotate_out, shape, inputs=[self.partials, self.q_rot, m.mask], outputs=[z], device=d)
+            return
         if self.mode == "dense":
             wp.launch(self._rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
             if self.tiles[3] > 1:

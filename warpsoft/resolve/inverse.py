@@ -45,7 +45,9 @@ def inverse_hessian(W_aa: np.ndarray, W_ea: np.ndarray, weights: np.ndarray,
     SW = np.sqrt(weights)[:, None] * W_ea
     task = SW.T @ SW
     Wsym = 0.5 * (W_aa + W_aa.T)
-    return task + epsilon * np.linalg.norm(task, 2) / max(np.linalg.norm(Wsym, 2), 1e-300) * Wsym
+    # spectral norms of symmetric matrices: their largest |eigenvalue| (eigvalsh: a third of an SVD's cost)
+    task_norm, w_norm = (np.abs(np.linalg.eigvalsh(x)).max() for x in (task, Wsym))
+    return task + epsilon * task_norm / max(w_norm, 1e-300) * Wsym
 
 
 def solve_inverse(W_aa: np.ndarray, W_ea: np.ndarray, delta_a_free: np.ndarray, delta_e_free: np.ndarray,
