@@ -156,7 +156,7 @@ def test_dense_products_apply_the_host_factor_to_every_column(product, width):
     host.apply(r, z_host)
     want = z_host.numpy()
     for precision, tol in (("float64", 1e-9), ("float32", 1e-4)):
-        pre = WarpedFactor(sim.operator, 3, "dense", precision, product=product, stream=(8, 2, width))
+        pre = WarpedFactor(sim.operator, 3, "dense", precision, product=product, stream=(16, 2, width))
         pre.prepare()
         pre.refresh()
         z = wp.zeros_like(r)

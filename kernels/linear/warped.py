@@ -160,7 +160,7 @@ def stream_kernels(columns: int, dtype, segments: int = 32, unroll: int = 4, wid
     if key in _streams:
         return _streams[key]
     K, S, UN, W = columns, segments, unroll, width
-    G = 8 if S % 8 == 0 else 1  # partials added 8 at a time: their loads go out together
+    G = 16 if S % 16 == 0 else (8 if S % 8 == 0 else 1)  # partials added G at a time: their loads go out together
     wide = wp.types.vector(length=W, dtype=dtype)
     sums = wp.types.matrix(shape=(W, K), dtype=dtype)
 
