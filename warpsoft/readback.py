@@ -23,7 +23,7 @@ class Readback:
 
     def __init__(self, arrays: dict[str, wp.array], device):
         self.device = wp.get_device(device)
-        self._sources, self._views, offset = [], {}, 0
+        self._sources, layout, offset = [], {}, 0
         for name, a in arrays.items():
             if not a.is_contiguous:
                 raise ValueError(f"Readback: array '{name}' must be contiguous")
@@ -32,11 +32,14 @@ class Readback:
             shape = (*a.shape, *getattr(a.dtype, "_shape_", ()))
             self._sources.append((wp.array(ptr=a.ptr, dtype=wp.uint8, shape=nbytes, device=self.device), offset,
                                   nbytes))
-            self._views[name] = (offset, np.dtype(wp.dtype_to_numpy(scalar)), shape)
+            layout[name] = (offset, np.dtype(wp.dtype_to_numpy(scalar)), shape)
             offset += -(-nbytes // 8) * 8  # 8-byte aligned
         self.nbytes = max(offset, 8)
         self._buffer = wp.empty(self.nbytes, dtype=wp.uint8, device=self.device)
         self._host = wp.empty(self.nbytes, dtype=wp.uint8, device="cpu", pinned=self.device.is_cuda)
+        raw = self._host.numpy()  # views into the host buffer, made once
+        self._views = {name: np.frombuffer(raw, dtype=dt, count=int(np.prod(shape)), offset=off).reshape(shape)
+                       for name, (off, dt, shape) in layout.items()}
 
     def gather(self) -> None:
         """Copy every array into the buffer (device to device; capturable)."""
@@ -48,6 +51,4 @@ class Readback:
         (vector and matrix elements as trailing axes)."""
         wp.copy(self._host, self._buffer)
         wp.synchronize_device(self.device)
-        raw = self._host.numpy()
-        return {name: np.frombuffer(raw, dtype=dt, count=int(np.prod(shape)), offset=off).reshape(shape).copy()
-                for name, (off, dt, shape) in self._views.items()}
+        return {name: view.copy() for name, view in self._views.items()}
