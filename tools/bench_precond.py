@@ -21,9 +21,9 @@ from warpsoft.linear import WarpedFactor
 
 ROOT = Path(__file__).resolve().parents[1]
 VARIANTS = [("tiles", (8, 128, 128, 1)), ("tiles", (8, 128, 128, 4)),  # rows, inner, threads, splits
-            ("stream", (64, 4, 0)), ("stream", (32, 4, 1)), ("stream", (32, 4, 2)), ("stream", (32, 4, 4)),
-            ("stream", (16, 4, 2)), ("stream", (64, 4, 2)), ("stream", (16, 8, 4)), ("stream", (64, 4, 4)),
-            ("stream", (128, 4, 4))]  # segments, unrolled loads, numbers per load (0: the default)
+            ("stream", (64, 2, 2)), ("stream", (64, 4, 2)), ("stream", (64, 1, 2)), ("stream", (64, 4, 4)),
+            ("stream", (32, 4, 1)), ("stream", (32, 4, 2)), ("stream", (128, 2, 2)),
+            ("stream", (128, 4, 4))]  # segments, unrolled loads, numbers per load
 BANDWIDTH = 4.0e12  # bytes/s, about what an H200 streams from its memory
 
 
@@ -33,6 +33,9 @@ def main(argv=None) -> int:
     ap.add_argument("--columns", type=int, default=5)
     ap.add_argument("--repeat", type=int, default=200)
     ap.add_argument("--products", nargs="*", default=["stream", "tiles"])
+    ap.add_argument("--precisions", nargs="*", default=["float64", "float32"])
+    ap.add_argument("--variants", nargs="*", default=None,
+                    help="stream shapes to try instead of the list, as segments,unroll,width (e.g. 64,4,2)")
     args = ap.parse_args(argv)
     sim = Simulator(build_scene(ROOT / args.scene), device="cuda", solver="direct")
     sim.step()
@@ -40,9 +43,11 @@ def main(argv=None) -> int:
     r = wp.array(np.random.default_rng(0).standard_normal((args.columns, n, 3)), dtype=wp.vec3d, device=d)
     z = wp.zeros_like(r)
     print(f"{args.scene}: {3 * n} DOFs, {args.columns} columns")
-    for precision in ("float64", "float32"):
+    variants = VARIANTS if args.variants is None else [("stream", tuple(int(v) for v in x.split(",")))
+                                                       for x in args.variants]
+    for precision in args.precisions:
         ref = None
-        for product, shape in [v for v in VARIANTS if v[0] in args.products]:
+        for product, shape in [v for v in variants if v[0] in args.products]:
             pre = WarpedFactor(sim.operator, args.columns, "dense", precision, product=product,
                                **{"tiles" if product == "tiles" else "stream": shape})
             pre.prepare()

@@ -33,9 +33,9 @@ MODES = ("auto", "host", "dense")
 PRODUCTS = ("stream", "tiles")
 DENSE_LIMIT = 12000  # free DOFs above which "auto" does not keep a dense inverse (1.2 GB in float64)
 TILES = (8, 128, 128, 1)  # tiled product: rows per block, columns per tile, threads, splits (tools/bench_precond.py)
-# streaming product: segments of the inner dimension, loads in flight per thread, numbers per load (0: 4 in
-# float64, 2 in float32); the fastest measured on the Diamond and the Trunk (tools/bench_precond.py)
-STREAM = (64, 4, 0)
+# streaming product: segments of the inner dimension, loads in flight per thread, numbers per load; the
+# fastest measured on the Diamond and the Trunk in both precisions (tools/bench_precond.py)
+STREAM = (64, 2, 2)
 
 
 class WarpedFactor:
@@ -49,7 +49,7 @@ class WarpedFactor:
         tiles: the tiled product's (rows per block, columns per tile, threads per block, splits of
             the inner dimension; 1 if left out).
         stream: the streaming product's (segments of the inner dimension, unrolled loads, numbers
-            per load: 0 for the measured default of the precision).
+            per load).
     """
 
     def __init__(self, operator: SystemOperator, columns: int, mode: str = "auto", precision: str = "float32",
@@ -92,9 +92,7 @@ class WarpedFactor:
                                                       self.tiles[3])
                 self._rotate_in, self._rotate_out = kernels.flat_rotations(self.dtype)
             else:
-                segments, unroll, width = (*(int(t) for t in stream), 0)[:3]
-                if width <= 0:
-                    width = 4 if self.dtype == wp.float64 else 2
+                segments, unroll, width = (*(int(t) for t in stream), 1)[:3]
                 self.stream = (segments, unroll, width)
                 step = np.lcm(segments * unroll, width)
                 self.padded = int(-(-3 * n // step) * step)
