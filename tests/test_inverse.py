@@ -2,13 +2,14 @@
 
 import numpy as np
 import pytest
+from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
 
 import warpsoft as ws
 from warpsoft.resolve import RowInputs, inverse_hessian, solve_inverse
 
 
-def run(scene, steps):
-    sim = ws.Simulator(scene, solver="direct")
+def run(scene, steps, qp="piqp"):
+    sim = ws.Simulator(scene, solver="direct", qp=qp)
     history = [sim.step() for _ in range(steps)]
     return sim, history
 
@@ -17,20 +18,22 @@ def diamond(scene_module, **kw):
     return scene_module("scenes/diamond.py").build(mesh_size=0.014, gravity=0.0, static=True, dt=1.0, **kw)
 
 
-def test_round_trip_direct_then_inverse_reaches_the_target(scene_module):
+@pytest.mark.parametrize("qp", ["piqp", "device"])  # the reference and the device QP
+def test_round_trip_direct_then_inverse_reaches_the_target(scene_module, qp):
     rng = np.random.default_rng(3)
     pulls = tuple(rng.uniform(0.0, 0.008, 4))
-    _, history = run(diamond(scene_module, cable_displacements=pulls), 8)
+    _, history = run(diamond(scene_module, cable_displacements=pulls), 8, qp)
     reached = history[-1].effectors["effector"]
     assert np.linalg.norm(reached - [0, 0, 0.125]) > 2e-3  # the random actuation did move the top
-    _, history = run(diamond(scene_module, mode="inverse", target=tuple(reached), max_cable_step=0.02), 20)
+    _, history = run(diamond(scene_module, mode="inverse", target=tuple(reached), max_cable_step=0.02), 20, qp)
     assert history[-1].qp_status == "optimal"
     assert history[-1].effector_error["effector"] < 2e-5  # recovered to 20 micrometres
 
 
-def test_redundant_trunk_is_unique_and_smooth(scene_module):
+@pytest.mark.parametrize("qp", ["piqp", "device"])  # the reference and the device QP
+def test_redundant_trunk_is_unique_and_smooth(scene_module, qp):
     trunk = scene_module("scenes/trunk.py").build(mesh_size=0.009, period=2.0, static=True, gravity=0.0)
-    sim, history = run(trunk, 60)
+    sim, history = run(trunk, 60, qp)
     cs, W = sim.rows, sim.last_W
     task = W[cs.effector_row_slice].T @ W[cs.effector_row_slice]
     assert np.linalg.matrix_rank(task, tol=1e-9 * np.abs(task).max()) <= 4  # 8 cables, 4 effector axes: redundant
@@ -49,10 +52,11 @@ def _free_rows(n, dmax=np.inf):
                      dmin=np.full(n, -np.inf), dmax=np.full(n, dmax))
 
 
-def test_unreachable_target_ends_at_the_closest_point_on_the_bounds(scene_module):
+@pytest.mark.parametrize("qp", ["piqp", "device"])  # the reference and the device QP
+def test_unreachable_target_ends_at_the_closest_point_on_the_bounds(scene_module, qp):
     far = (0.0, 0.06, 0.11)  # 6 cm sideways: beyond 20 mm of cable
     sim, history = run(diamond(scene_module, mode="inverse", target=far, max_cable_step=0.005,
-                               max_cable_displacement=0.012), 16)
+                               max_cable_displacement=0.012), 16, qp)
     delta = np.array([list(s.actuator_delta.values()) for s in history])
     top = np.array([s.effectors["effector"] for s in history])
     assert history[-1].effector_error["effector"] > 0.01  # unreachable
@@ -61,11 +65,12 @@ def test_unreachable_target_ends_at_the_closest_point_on_the_bounds(scene_module
     assert np.all(np.abs(np.diff(top[-5:], axis=0)).max() < 1e-5)
 
 
-def test_bounds_are_never_violated_along_a_trajectory(scene_module):
+@pytest.mark.parametrize("qp", ["piqp", "device"])  # the reference and the device QP
+def test_bounds_are_never_violated_along_a_trajectory(scene_module, qp):
     scene = scene_module("scenes/diamond.py").build(mesh_size=0.014, gravity=0.0, static=True, dt=0.25,
                                                      mode="inverse", max_cable_step=0.002, max_cable_displacement=0.01,
                                                      circle_radius=0.03, circle_period=12.0)
-    _, history = run(scene, 30)
+    _, history = run(scene, 30, qp)
     delta = np.array([list(s.actuator_delta.values()) for s in history])
     lam = np.array([list(s.actuator_lambda.values()) for s in history])
     assert np.all(lam >= 0)
@@ -88,6 +93,21 @@ def test_infeasible_bounds_are_reported_and_safe():
                       hi=np.array([1.0, np.inf]), dmin=np.full(2, -np.inf), dmax=np.full(2, np.inf))
     res = solve_inverse(W_aa, W_ea, np.zeros(2), np.zeros(2), empty, np.ones(2), previous=np.zeros(2))
     assert res.status == "infeasible" and "empty bounds" in res.warning and np.all(np.isfinite(res.lam))
+
+
+def test_device_qp_with_empty_bounds_keeps_the_previous_actuation(scene_module):
+    """A row whose force interval is empty this step: the device QP says so, like piqp's path,
+    and the world keeps its previous actuation (clipped), finite."""
+    sim = ws.Simulator(diamond(scene_module, mode="inverse", target=(0.0, 0.005, 0.12)), solver="direct", qp="device")
+    first = sim.step()
+    assert first.qp_status == "optimal" and not first.warnings
+    gs = sim.gauss_seidel
+    gs.host[gs_kernels.LO, 1], gs.host[gs_kernels.HI, 1] = 2.0, 1.0  # force in [2, 1] N: empty
+    gs.inputs.assign(gs.host)
+    previous = sim.lam.copy()
+    stats = sim.step()
+    assert stats.qp_status == "infeasible" and "actuator row 1: empty bounds" in stats.warnings[0]
+    assert np.allclose(sim.lam, np.clip(previous, [0, 2.0, 0, 0], [np.inf, 1.0, np.inf, np.inf]))
 
 
 def test_inverse_scene_needs_a_target():

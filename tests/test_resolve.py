@@ -71,3 +71,67 @@ def test_device_gauss_seidel_equals_numpy(seed):
     at_force_bound = [np.any(np.isclose(r.lam, worlds[w][4]) | np.isclose(r.lam, worlds[w][5]))
                       for w, r in enumerate(expected)]
     assert any(at_force_bound)  # the force bounds did bind somewhere
+
+
+# ---- the inverse model's QP on the device (dual active set) against piqp, the reference ----
+def dense_qps(P, q, G, bounds, n):
+    """Solve each QP with the device kernel; returns x (k, n) and status (k,)."""
+    from warpsoft.kernels.resolve import inverse_qp
+
+    x = wp.zeros((len(P), n), dtype=wp.float64)
+    status = wp.zeros(len(P), dtype=wp.int32)
+    wp.launch(inverse_qp.dense_qp, len(P), inputs=[wp.array(P, dtype=wp.float64), wp.array(q, dtype=wp.float64),
+                                                   wp.array(G, dtype=wp.float64), wp.array(bounds, dtype=wp.float64),
+                                                   n, 400], outputs=[x, status])
+    return x.numpy(), status.numpy()
+
+
+def reference_qp(P, q, G, b):
+    from qpsolvers import solve_qp
+
+    up, lw = np.isfinite(b[3]), np.isfinite(b[2])
+    Gs, hs = np.vstack([G[up], -G[lw]]), np.concatenate([b[3][up], -b[2][lw]])
+    return solve_qp(P, q, Gs if len(hs) else None, hs if len(hs) else None, lb=b[0], ub=b[1], solver="piqp",
+                    eps_abs=1e-12, eps_rel=1e-12)
+
+
+@pytest.mark.parametrize("n", [1, 4, 8, 16])
+def test_device_qp_is_the_exact_optimum_piqp_approaches(n):
+    """Random strictly convex QPs with force bounds and two-sided bounds on ``W_sym lambda``, some
+    of them duplicated (dependent constraints): the device solution is feasible to round-off and
+    its objective is piqp's, or lower (piqp, an interior-point method, may end ~1e-8 outside a
+    bound); at piqp's tolerance the two agree."""
+    rng = np.random.default_rng(n)
+    k = 24
+    P, q, G, b = np.zeros((k, n, n)), np.zeros((k, n)), np.zeros((k, n, n)), np.zeros((k, 4, n))
+    for i in range(k):
+        M = rng.standard_normal((n, n))
+        P[i] = M @ M.T + 0.05 * np.eye(n)
+        q[i] = 3 * rng.standard_normal(n)
+        Gm = rng.standard_normal((n, n))
+        G[i] = Gm @ Gm.T / n + np.eye(n)
+        if n > 1 and i % 3 == 0:
+            G[i, 1] = G[i, 0]  # two actuators with the same row: dependent constraints
+        b[i, 0] = np.where(rng.random(n) < 0.7, 0.0, -np.inf)
+        b[i, 1] = np.where(rng.random(n) < 0.4, 1.0, np.inf)
+        b[i, 2] = np.where(rng.random(n) < 0.5, -0.5, -np.inf)
+        b[i, 3] = np.where(rng.random(n) < 0.5, 0.8, np.inf)
+    x, status = dense_qps(P, q, G, b, n)
+    assert np.all(status == 0)
+    for i in range(k):
+        ref = reference_qp(P[i], q[i], G[i], b[i])
+        Gx = G[i] @ x[i]
+        violation = max(np.max(b[i, 0] - x[i]), np.max(x[i] - b[i, 1]), np.max(b[i, 2] - Gx), np.max(Gx - b[i, 3]))
+        assert violation < 1e-10
+        f = lambda v, i=i: 0.5 * v @ P[i] @ v + q[i] @ v  # noqa: E731
+        assert f(x[i]) <= f(ref) + 1e-7 * max(1.0, abs(f(ref)))  # (piqp may sit ~1e-8 outside a bound)
+        assert np.abs(x[i] - ref).max() < 1e-5 * max(1.0, np.abs(ref).max())
+
+
+def test_device_qp_reports_infeasible_constraints():
+    """``lambda >= 1`` and ``lambda <= -1`` through ``W_sym = I``: no solution, said so."""
+    n = 2
+    P, q, G = np.eye(n)[None], np.zeros((1, n)), np.eye(n)[None]
+    b = np.array([[[1.0, 0.0], [np.inf, np.inf], [-np.inf, -np.inf], [-1.0, np.inf]]])
+    _, status = dense_qps(P, q, G, b, n)
+    assert status[0] == 2  # INFEASIBLE

@@ -65,10 +65,10 @@ def test_three_static_worlds_step_as_alone(scene_module, solver):
                 [alone[w][k].cg_iterations for w in range(3)]
 
 
-@pytest.mark.parametrize("solver", ["direct", "pcg"])
-def test_three_dynamic_robots_step_as_alone(scene_module, solver):
+@pytest.mark.parametrize("solver, qp", [("direct", "piqp"), ("pcg", "piqp"), ("direct", "device")])
+def test_three_dynamic_robots_step_as_alone(scene_module, solver, qp):
     scenes = dynamic_trio(scene_module)
-    sim, alone, together = run_alone_and_together(scenes, 4, solver=solver)
+    sim, alone, together = run_alone_and_together(scenes, 4, solver=solver, qp=qp)
     assert [s.inverse for s in sim.model.scenes] == [True, True, False]
     assert list(sim.rows.world_actuators) == [4, 8, 4] and sim.rows.num_columns == 8
     assert_same(sim, alone, together, 1e-8)

@@ -18,6 +18,7 @@ from .linear import SOLVERS, SystemOperator, choose, make_solver
 from .model import Model
 from .readback import Readback
 from .resolve import GaussSeidel, kinematic_jacobian
+from .resolve.inverse_device import NMAX, DeviceInverse
 from .rows import Rows
 from .scene import Scene
 from .state import Control, State
@@ -52,18 +53,25 @@ class Simulator:
         precision: ``pcg`` with a dense inverse: its storage, "float32" (default: half the memory
             and bytes per iteration; the CG itself runs in float64, so the solution meets the
             same tolerance, at the cost of 0-2 more iterations on the reference scenes) or "float64".
+        qp: the inverse model's QP: "piqp" (on the host through qpsolvers, the reference),
+            "device" (an exact dual active-set method on the device, up to 16 actuators per
+            world: the inverse step stays one graph) or "auto" (device on CUDA when it can,
+            piqp elsewhere).
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
                  tolerance: float = 1e-6, max_iterations: int = 2000, warm_start: bool = True,
                  timing: bool = True, check_every: int | None = None, graphs: bool = True,
-                 factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32"):
+                 factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
+                 qp: str = "auto"):
         if solver not in SOLVERS:
             raise SceneError(f"Simulator: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         if not (0.0 < float(tolerance) < 1.0):
             raise SceneError(f"Simulator: tolerance must lie in (0, 1), got {tolerance!r}")
         if int(max_iterations) < 1:
             raise SceneError(f"Simulator: max_iterations must be >= 1, got {max_iterations!r}")
+        if qp not in ("auto", "piqp", "device"):
+            raise SceneError(f"Simulator: qp must be 'auto', 'piqp' or 'device', got {qp!r}")
         if check_every is not None and int(check_every) < 1:
             raise SceneError(f"Simulator: check_every must be >= 1, got {check_every!r}")
         self.model = scene if isinstance(scene, Model) else Model(scene, device)
@@ -104,6 +112,14 @@ class Simulator:
             self.gauss_seidel = GaussSeidel(self.rows)
             self.effector_weights = [np.concatenate([np.full(len(e.axes), e.weight) for e in effs]) if effs
                                      else np.zeros(0) for effs in self.rows.effectors]
+        self.device_inverse = None  # the inverse model's QP on the device, when it is the one used
+        if self.rows is not None and any(s.inverse and self.rows.world_actuators[w] for w, s in enumerate(m.scenes)):
+            device_qp = DeviceInverse(self.rows, m.scenes, self.effector_weights)
+            if qp == "device" and not device_qp.usable:
+                raise SceneError(f"Simulator: qp='device' takes at most {NMAX} actuators per world, got "
+                                 f"{int(max(self.rows.world_actuators))}; use qp='piqp'")
+            if qp == "device" or (qp == "auto" and d.is_cuda and device_qp.usable):
+                self.device_inverse = device_qp
         self._stepped = False
         self.values = None  # the actuator inputs of the current step, (rows,)
         # on CUDA, the device part of a step is replayed as graphs when the solver allows it
@@ -131,6 +147,8 @@ class Simulator:
             if self.rows.num_actuators:
                 gs = self.gauss_seidel
                 after |= {"lam": gs.lam, "resolve": gs.result}
+                if self.device_inverse is not None:
+                    after["qp"] = self.device_inverse.result
                 self.before_qp = Readback({"W": self.rows.W, "delta_free": self.rows.delta_free,
                                            "delta": self.rows.delta, "lam": gs.lam}, d)
         self.after_step = Readback(after, d)

@@ -17,9 +17,10 @@ class ConvergenceWarning(UserWarning):
 class WorldStats:
     """One world's share of a step: the iterations of its linear solve (when the solver counts
     them per world), its multipliers' resolution (Gauss-Seidel sweeps and last change, or the
-    QP status and time in s), and its rows after the step by name: actuator ``delta`` (cable m,
-    cavity m^3) and ``lambda`` (N, Pa), effector positions and targets (m) and the distance
-    between them on the controlled axes (m)."""
+    QP status and time in s: 0 for the device QP, which runs inside the step's graph and gives
+    its active-set iterations as ``resolve_iterations``), and its rows after the step by name:
+    actuator ``delta`` (cable m, cavity m^3) and ``lambda`` (N, Pa), effector positions and
+    targets (m) and the distance between them on the controlled axes (m)."""
 
     cg_iterations: int = 0
     resolve_iterations: int = 0

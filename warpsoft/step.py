@@ -42,10 +42,11 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     start = time.perf_counter()
     actuated = rows is not None and rows.num_actuators > 0
     inverse = actuated and any(s.inverse and rows.world_actuators[w] for w, s in enumerate(m.scenes))
+    host_qp = inverse and sim.device_inverse is None
     host_inputs(sim, stats.time, controls)  # user schedules, evaluated once; uploads only when they change
 
     if sim.capture and getattr(sim.solver, "capturable", False):
-        if inverse:  # two graphs around the host QP
+        if host_qp:  # two graphs around the host QP
             replay(sim, stats, "device_before_qp", lambda: (before_resolve(sim, actuated), sim.before_qp.gather()))
             with stage(sim, stats, "resolve"):
                 resolve_inverse(sim, stats, sim.before_qp.read())
@@ -68,7 +69,9 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
                 compliance(sim)
             with stage(sim, stats, "resolve"):  # lambda of every world: direct model or inverse model
                 resolve_direct(sim)
-                if inverse:
+                if sim.device_inverse is not None:
+                    resolve_inverse_on_device(sim)
+                elif inverse:
                     sim.before_qp.gather()
                     resolve_inverse(sim, stats, sim.before_qp.read())
         with stage(sim, stats, "correct"):  # dx = dx_free + s X lambda; q += dx, v = dx / h
@@ -78,6 +81,8 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     check_health(sim, stats, host)
     if rows is not None:
         record_rows(sim, stats, host)  # the rows at the new state: what the report records
+    if sim.device_inverse is not None:
+        record_device_qp(sim, stats, host)
 
     sim.state, sim.next = sim.next, sim.state
     sim.time, sim.step_index = stats.time, stats.index
@@ -86,14 +91,16 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
 
 
 def before_resolve(sim: Simulator, actuated: bool) -> None:
-    """Device work up to the multipliers: linearize, the batched solve, the compliance and the
-    direct model's Gauss-Seidel."""
+    """Device work up to the multipliers: linearize, the batched solve, the compliance, the
+    direct model's Gauss-Seidel and the inverse model's QP when it runs on the device."""
     linearize(sim)
     free_solve_inputs(sim, actuated)
     sim.solver.run(sim.rhs, sim.sol)
     if actuated:
         compliance(sim)
         resolve_direct(sim)
+        if sim.device_inverse is not None:
+            resolve_inverse_on_device(sim)
 
 
 def after_resolve(sim: Simulator, actuated: bool) -> None:
@@ -243,6 +250,24 @@ def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray
         if res.warning:
             stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: {res.warning}")
     gs.lam.assign(lam)
+
+
+def resolve_inverse_on_device(sim: Simulator) -> None:
+    """Inverse-model worlds: the QP of each on the device (after the Gauss-Seidel of the direct
+    worlds, whose multipliers it leaves alone)."""
+    rows, gs = sim.rows, sim.gauss_seidel
+    sim.device_inverse.solve(rows.W, rows.delta_free, rows.delta, gs.inputs, gs.lam)
+
+
+def record_device_qp(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
+    """Each inverse world's QP outcome, from the step's read; a failure is a warning (the world
+    kept its previous actuation)."""
+    for w in sim.device_inverse.worlds:
+        status, warning = sim.device_inverse.outcome(host["qp"], w)
+        ws = stats.worlds[w]
+        ws.qp_status, ws.qp_seconds, ws.resolve_iterations = status, 0.0, sim.device_inverse.iterations(host["qp"], w)
+        if warning:
+            stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: {warning}")
 
 
 def row_inputs(host: np.ndarray, values: np.ndarray, delta: np.ndarray, a: slice) -> RowInputs:

@@ -12,8 +12,9 @@ any robot and any units. It makes redundant actuation unique (the least-energy s
 smooth in time; its cost in accuracy is proportional to it. Measured on the Diamond (a
 14 mm round trip, quasi-static): eps 1e-3 left 88 um, 1e-4 8.9 um, 1e-5 0.9 um; the trunk's
 actuation stayed as smooth down to 1e-6. Default 1e-4: about 0.06 % of the effector's motion.
-Solved with piqp through qpsolvers; a failure or infeasible bounds give a warning and the
-previous actuation (clipped to the force bounds), never NaN.
+Solved with piqp through qpsolvers (the reference; ``inverse_device.py`` solves the same QP on
+the device); a failure or infeasible bounds give a warning and the previous actuation (clipped
+to the force bounds), never NaN.
 """
 
 from __future__ import annotations
