@@ -47,7 +47,7 @@ PAPER_MS = {"diamond_inverse": 22.0, "diamond_inverse_softrobots_mesh": 22.0, "t
 
 # v1 and v2 per device: the solver (and options) each release used by default there
 CONFIGS = {
-    "v1": {"cpu": ("direct", {"factorization": "superlu"}), "cuda": ("jacobi", {})},
+    "v1": {"cpu": ("direct", {"factorization": "superlu", "qp": "piqp"}), "cuda": ("jacobi", {"qp": "piqp"})},
     "v2": {"cpu": ("direct", {}), "cuda": ("pcg", {})},
 }
 
@@ -188,6 +188,7 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup", type=int, default=2)
     ap.add_argument("--scenes", nargs="*", default=None, help="names from SCENES (default: all)")
     ap.add_argument("--out", default="out/bench")
+    ap.add_argument("--qp", choices=["auto", "piqp", "device"], default="auto", help="v2's inverse-model QP")
     ap.add_argument("--kernels", action="store_true",
                     help="CUDA: time each kernel and copy of the uncaptured step (kernels.md)")
     ap.add_argument("--precision", choices=["float32", "float64"], default="float32",
@@ -195,9 +196,10 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     kind = "cuda" if args.device.startswith("cuda") else "cpu"
     if args.compare:
-        runs = [(c, *CONFIGS[c][kind]) for c in ("v1", "v2")]
+        runs = [("v1", *CONFIGS["v1"][kind]), ("v2", CONFIGS["v2"][kind][0], {"qp": args.qp})]
     else:
-        runs = [("v2", args.solver, {"precision": args.precision} if args.solver in ("pcg", "auto") else {})]
+        runs = [("v2", args.solver, {"qp": args.qp} | ({"precision": args.precision} if args.solver in ("pcg", "auto")
+                                                         else {}))]
     chosen = [s for s in SCENES if args.scenes is None or s[0] in args.scenes]
     rows = []
     for name, path, params in chosen:
