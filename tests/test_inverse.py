@@ -119,3 +119,17 @@ def test_inverse_scene_needs_a_target():
     scene.use_inverse_model()
     with pytest.raises(ws.SceneError, match="needs an effector with a target"):
         ws.Simulator(scene)
+
+
+def test_qp_choice_errors_are_named():
+    scene = ws.Scene("s", static=True)
+    body = scene.add_body("b", ws.box_grid((0, 0, 0), (0.05, 0.01, 0.01), (5, 1, 1)), ws.Material(1e5, 0.3))
+    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+    for k in range(17):
+        scene.add_cable(f"c{k}", body, points=[(0.05, 0.005, 0.005)], pull_point=(-0.01, 0.005, 0.005))
+    scene.add_effector("e", (0.05, 0.005, 0.005), target=(0.05, 0.005, 0.004))
+    scene.use_inverse_model()
+    with pytest.raises(ws.SceneError, match="qp='device' takes at most 16 actuators per world, got 17"):
+        ws.Simulator(scene, qp="device")
+    with pytest.raises(ws.SceneError, match="qp must be 'auto', 'piqp' or 'device', got 'osqp'"):
+        ws.Simulator(scene, qp="osqp")

@@ -53,10 +53,11 @@ class Simulator:
         precision: ``pcg`` with a dense inverse: its storage, "float32" (default: half the memory
             and bytes per iteration; the CG itself runs in float64, so the solution meets the
             same tolerance, at the cost of 0-2 more iterations on the reference scenes) or "float64".
-        qp: the inverse model's QP: "piqp" (on the host through qpsolvers, the reference),
-            "device" (an exact dual active-set method on the device, up to 16 actuators per
-            world: the inverse step stays one graph) or "auto" (device on CUDA when it can,
-            piqp elsewhere).
+        qp: the inverse model's QP: "piqp" (on the host through qpsolvers, the reference) or
+            "device" (an exact dual active-set method on the device, one thread per world, up
+            to 16 actuators: the inverse step stays one graph). "auto" is piqp: on the H200 the
+            device QP's one thread takes 0.3 ms for the Diamond's 4 actuators and 1 ms for the
+            Trunk's 8, against 0.3-0.5 ms for piqp and its round trip (docs/performance.md).
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
@@ -112,14 +113,13 @@ class Simulator:
             self.gauss_seidel = GaussSeidel(self.rows)
             self.effector_weights = [np.concatenate([np.full(len(e.axes), e.weight) for e in effs]) if effs
                                      else np.zeros(0) for effs in self.rows.effectors]
-        self.device_inverse = None  # the inverse model's QP on the device, when it is the one used
-        if self.rows is not None and any(s.inverse and self.rows.world_actuators[w] for w, s in enumerate(m.scenes)):
-            device_qp = DeviceInverse(self.rows, m.scenes, self.effector_weights)
-            if qp == "device" and not device_qp.usable:
+        self.device_inverse = None  # the inverse model's QP on the device, when asked for
+        if qp == "device" and self.rows is not None and any(s.inverse and self.rows.world_actuators[w]
+                                                            for w, s in enumerate(m.scenes)):
+            self.device_inverse = DeviceInverse(self.rows, m.scenes, self.effector_weights)
+            if not self.device_inverse.usable:
                 raise SceneError(f"Simulator: qp='device' takes at most {NMAX} actuators per world, got "
                                  f"{int(max(self.rows.world_actuators))}; use qp='piqp'")
-            if qp == "device" or (qp == "auto" and d.is_cuda and device_qp.usable):
-                self.device_inverse = device_qp
         self._stepped = False
         self.values = None  # the actuator inputs of the current step, (rows,)
         # on CUDA, the device part of a step is replayed as graphs when the solver allows it
