@@ -86,3 +86,123 @@ def test_report_and_usd_carry_actuators_and_effectors(tmp_path):
     assert curve.GetPointsAttr().GetTimeSamples() == [0.0, 1.0, 2.0, 3.0]
     assert len(curve.GetPointsAttr().Get(3.0)) == 11  # the pull point and ten path points
     assert stage.GetPrimAtPath("/World/effectors/fingertip").IsValid()
+
+
+# ---- outputs checked first, how a run ended, user code, interruption (issue: never lose a result) ----
+BEAM_WITH_FAILING_LOAD = '''
+import warpsoft as ws
+
+
+def build(fail_at=0.045):
+    """A beam under a load whose function fails at ``fail_at`` s (the scene's own bug)."""
+    scene = ws.Scene("beam", dt=0.01)
+    body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.05, 0.01, 0.01), (5, 1, 1)), ws.Material(1e5, 0.3))
+    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+
+    def load(t):
+        if t > fail_at:
+            raise ZeroDivisionError("my bad")
+        return (0.0, 0.0, -0.01 * t)
+
+    scene.add_force(body, ws.Plane((0.05, 0, 0), (1, 0, 0)), load)
+    scene.add_probe("tip", (0.05, 0.005, 0.005))
+    return scene
+'''
+
+
+def test_outputs_and_device_are_checked_before_anything_runs(tmp_path, capsys):
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("a file, not a folder")
+    assert main(["run", CANTILEVER, "--report", str(blocker / "r.json"), "--quiet"]) == 2
+    assert "cannot be written" in capsys.readouterr().err
+    assert main(["run", CANTILEVER, "--report", str(tmp_path), "--quiet"]) == 2
+    assert "is a folder, not a file" in capsys.readouterr().err
+    assert main(["run", CANTILEVER, "--usd", str(tmp_path / "beam.obj"), "--quiet"]) == 2
+    assert "extension must be one of .usda, .usdc, .usd" in capsys.readouterr().err
+    assert main(["run", CANTILEVER, "--device", "gpu", "--quiet"]) == 2
+    assert "unknown device 'gpu'" in capsys.readouterr().err
+    assert not list(tmp_path.glob("*.json"))
+
+
+def test_version_and_scene_parameters(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out.startswith("warpsoft ")
+    assert main(["params", CANTILEVER]) == 0
+    out = capsys.readouterr().out
+    assert "length = 0.1" in out and "mesh_size = None" in out
+
+
+def test_report_says_how_the_run_ended_and_with_what(tmp_path):
+    rep = tmp_path / "r.json"
+    assert main(["run", CANTILEVER, "--steps", "2", "--param", "mesh_size=0.005", "--report", str(rep),
+                 "--quiet"]) == 0
+    d = json.loads(rep.read_text())
+    assert d["status"] == "completed" and d["error"] is None
+    assert {"warpsoft", "warp", "numpy", "python"} <= set(d["versions"])
+    assert d["params"] == {"mesh_size": 0.005}
+    assert d["params_used"]["mesh_size"] == 0.005 and d["params_used"]["length"] == 0.1  # defaults included
+    assert d["options"] == {"solver": "auto", "tolerance": 1e-6, "steps": 2}
+
+
+def test_an_error_in_the_scenes_own_code_is_named_and_the_finished_steps_kept(tmp_path, capsys):
+    scene = tmp_path / "beam.py"
+    scene.write_text(BEAM_WITH_FAILING_LOAD)
+    rep, usd = tmp_path / "r.json", tmp_path / "r.usda"
+    assert main(["run", str(scene), "--steps", "10", "--report", str(rep), "--usd", str(usd), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "load 'load0': its force function raised ZeroDivisionError: my bad (at t = 0.05 s)" in err
+    assert "scene's code" in err and "solver" not in err
+    d = json.loads(rep.read_text())
+    assert d["status"] == "failed" and "UserCodeError" in d["error"] and d["steps"] == 4
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(usd))  # (kept: its prims live as long as it does)
+    assert UsdGeom.Mesh(stage.GetPrimAtPath("/World/beam")).GetPointsAttr().GetTimeSamples() == [0, 1, 2, 3, 4]
+
+
+def test_sigterm_ends_the_run_cleanly_with_every_finished_step(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    scene = tmp_path / "beam.py"
+    scene.write_text(BEAM_WITH_FAILING_LOAD)
+    rep, usd = tmp_path / "r.json", tmp_path / "r.usda"
+    proc = subprocess.Popen([sys.executable, "-m", "warpsoft.io.cli", "run", str(scene), "--param", "fail_at=1e9",
+                             "--steps", "1000000", "--report", str(rep), "--usd", str(usd), "--flush-every", "1",
+                             "--quiet"], stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline:  # wait until a few steps are on disk
+            if rep.exists() and json.loads(rep.read_text())["steps"] >= 3:
+                break
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130 and "stopped by SIGTERM" in err
+    d = json.loads(rep.read_text())
+    assert d["status"] == "interrupted" and d["steps"] >= 3 and len(d["points"]["tip"]) == d["steps"]
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(usd))
+    samples = UsdGeom.Mesh(stage.GetPrimAtPath("/World/beam")).GetPointsAttr().GetTimeSamples()
+    assert len(samples) == d["steps"] + 1
+
+
+def test_no_cuda_driver_warning_on_a_machine_without_one():
+    """Warp's C runtime warns on stderr at every start when no NVIDIA driver is found; warpsoft
+    starts it with that warning muted (on this kind of machine only)."""
+    import ctypes.util
+    import subprocess
+    import sys
+
+    if ctypes.util.find_library("cuda") is not None:
+        pytest.skip("this machine has an NVIDIA driver")
+    out = subprocess.run([sys.executable, "-c", "import warpsoft, warp; print(warp.get_device('cpu'))"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "cpu"
+    assert "CUDA driver" not in out.stderr

@@ -9,7 +9,29 @@ import warp as _wp
 
 _wp.config.log_level = _wp.LOG_WARNING  # no banner or per-module load lines
 
-from .errors import MeshError, SceneError, SimulationError, WarpsoftError  # noqa: E402
+
+def _init_warp_without_driver_warning() -> None:
+    """On a machine with no NVIDIA driver, Warp's C runtime prints a warning on stderr at every
+    start (and runs on the CPU device, as it should): initialize it now with that stream muted.
+    With a driver, nothing happens here and Warp starts when first used, as usual."""
+    import ctypes.util
+    import os
+
+    if ctypes.util.find_library("cuda") is not None:
+        return
+    saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        _wp.init()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
+
+
+_init_warp_without_driver_warning()
+
+from .errors import MeshError, SceneError, SimulationError, UserCodeError, WarpsoftError  # noqa: E402
 from .model import Model, finalize  # noqa: E402
 from .scene import (  # noqa: E402
     Ball,
@@ -40,6 +62,6 @@ __version__ = "0.1.0"
 __all__ = [
     "Ball", "Box", "Cone", "Control", "ConvergenceWarning", "Cylinder", "HalfSpace", "Material", "MeshError", "Model",
     "Plane", "Region", "Scene", "SceneError", "SimulationError", "Simulator", "Sphere", "State", "StepStats",
-    "TetMesh", "WarpsoftError", "WorldStats", "box_grid", "finalize", "load_mesh", "mesh_shape", "regions",
-    "rotation_about", "save_mesh", "shapes", "waypoints",
+    "TetMesh", "UserCodeError", "WarpsoftError", "WorldStats", "box_grid", "finalize", "load_mesh", "mesh_shape",
+    "regions", "rotation_about", "save_mesh", "shapes", "waypoints",
 ]

@@ -15,3 +15,18 @@ class MeshError(SceneError):
 
 class SimulationError(WarpsoftError, RuntimeError):
     """A step produced a non-finite state; the state before the step is kept."""
+
+
+class UserCodeError(SceneError):
+    """The scene's own code (a schedule, a target, a load function) raised an exception; the
+    message names the component, the time and the original error (chained as ``__cause__``)."""
+
+
+def call_user(fn, t: float, what: str):
+    """``fn(t)``, the user's code; an exception it raises becomes a :class:`UserCodeError`
+    naming ``what`` (e.g. "cable 'c0': its input schedule")."""
+    try:
+        return fn(t)
+    except Exception as exc:  # any error of the user's code: say whose it is
+        raise UserCodeError(f"{what} raised {type(exc).__name__}: {exc} (at t = {t:g} s); "
+                            "the error is in the scene's code, not in warpsoft") from exc

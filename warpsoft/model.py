@@ -18,7 +18,7 @@ import warp as wp
 
 from warpsoft.kernels.elastic import geometry
 
-from .errors import SceneError
+from .errors import SceneError, call_user
 from .mapping import locate
 from .scene import Scene, load_weights
 from .state import State
@@ -200,7 +200,7 @@ class Model:
             return None
         f = np.zeros((self.num_nodes, 3))
         for load, ids, w in self.time_dependent_loads:
-            total = np.asarray(load.total(t), dtype=float)
+            total = np.asarray(call_user(load.total, t, f"load '{load.name}': its force function"), dtype=float)
             if total.shape != (3,) or not np.all(np.isfinite(total)):
                 raise SceneError(f"load '{load.name}': total({t:g}) must return 3 finite numbers, got {total!r}")
             f[ids] += w[:, None] * total[None, :]

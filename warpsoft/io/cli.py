@@ -1,5 +1,5 @@
 """Command line: ``warpsoft run SCENE.py [--steps N] [--device cpu|cuda] [--usd OUT] [--report OUT.json]
-[--param key=value ...]``."""
+[--param key=value ...]``, ``warpsoft params SCENE.py``, ``warpsoft --version``."""
 
 from __future__ import annotations
 
@@ -10,8 +10,13 @@ from ..errors import WarpsoftError
 
 
 def _parser() -> argparse.ArgumentParser:
+    from .. import __version__
+
     p = argparse.ArgumentParser(prog="warpsoft", description="Simulate and control soft robots with NVIDIA Warp.")
+    p.add_argument("--version", action="version", version=f"warpsoft {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
+    ps = sub.add_parser("params", help="list a scene file's parameters, their defaults and its documentation")
+    ps.add_argument("scene", help="path of the scene file")
     r = sub.add_parser("run", help="run a scene file (a Python file defining build(**params) -> Scene)")
     r.add_argument("scene", help="path of the scene file")
     r.add_argument("--steps", type=int, default=None, help="number of steps (default: the scene's)")
@@ -23,8 +28,29 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--solver", choices=["auto", "pcg", "direct", "jacobi"], default="auto",
                    help="linear solver (default: auto, the fastest measured on the device: direct on cpu, pcg on cuda)")
     r.add_argument("--tolerance", type=float, default=1e-6, help="CG relative residual (default: 1e-6)")
+    r.add_argument("--flush-every", type=int, default=50, metavar="N",
+                   help="write the report and the USD every N steps as the run goes (default: 50)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     return p
+
+
+def scene_params(path: str) -> str:
+    """The text ``warpsoft params`` prints: the scene's documentation, then each parameter of its
+    ``build`` with its default."""
+    import inspect
+
+    from .runner import load_scene_module
+
+    module = load_scene_module(path)
+    lines = [f"{path}:"]
+    doc = inspect.getdoc(module.build) or inspect.getdoc(module)
+    if doc:
+        lines += ["  " + line for line in doc.splitlines()] + [""]
+    for name, p in inspect.signature(module.build).parameters.items():
+        if p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
+            continue
+        lines.append(f"  {name} = {p.default!r}" if p.default is not p.empty else f"  {name} (required)")
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,13 +58,20 @@ def main(argv: list[str] | None = None) -> int:
     from .runner import build_scene, parse_params, run
 
     try:
+        if args.command == "params":
+            print(scene_params(args.scene))
+            return 0
         params = parse_params(args.param)
         scene = build_scene(args.scene, params)
         rep = run(scene, steps=args.steps, device=args.device, usd=args.usd, report=args.report,
-                  solver=args.solver, tolerance=args.tolerance, progress=not args.quiet, scene_file=args.scene)
+                  solver=args.solver, tolerance=args.tolerance, progress=not args.quiet, scene_file=args.scene,
+                  flush_every=args.flush_every)
     except WarpsoftError as exc:
         print(f"warpsoft: error: {exc}", file=sys.stderr)
         return 2
+    if rep.status == "interrupted":
+        print(f"warpsoft: {rep.error}; the outputs hold every finished step", file=sys.stderr)
+        return 130
     if not args.quiet:
         d = rep.to_dict()
         t = d["timings"]["step"]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -38,10 +39,18 @@ def jsonable(value):
 
 
 class RunReport:
-    """Collects per-step records of a simulator run."""
+    """Collects per-step records of a simulator run, and how the run ended: ``status``
+    ("running" until it ends, then "completed", "failed" or "interrupted") and ``error``.
 
-    def __init__(self, sim: Simulator, scene_file: str | None = None, params: dict | None = None):
+    ``params`` are the scene parameters given, ``params_used`` all of them, defaults included;
+    ``options`` the run's own settings (solver, tolerance, steps)."""
+
+    def __init__(self, sim: Simulator, scene_file: str | None = None, params: dict | None = None,
+                 params_used: dict | None = None, options: dict | None = None):
         self.sim, self.scene_file, self.params = sim, scene_file, dict(params or {})
+        self.params_used = dict(params_used) if params_used is not None else dict(self.params)
+        self.options = dict(options or {})
+        self.status, self.error = "running", None
         self.steps: list[StepStats] = []
         self.points: dict[str, list] = {name: [] for name in sim.model.probe_names}
         self.W: list = []
@@ -84,8 +93,13 @@ class RunReport:
         warnings = [w for s in self.steps for w in s.warnings]
         return jsonable({
             "scene": m.scene.name,
+            "status": self.status,
+            "error": self.error,
+            "versions": versions(),
             "scene_file": self.scene_file,
             "params": self.params,
+            "params_used": self.params_used,
+            "options": self.options,
             "device": str(m.device),
             "solver": sim.solver_name,
             "static": m.static,
@@ -117,7 +131,22 @@ class RunReport:
         })
 
     def write(self, path: str | Path) -> Path:
+        """Write the report as JSON, atomically (a reader, or a kill mid-write, never sees half a file)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(self.to_dict(), indent=1))
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(json.dumps(self.to_dict(), indent=1))
+        os.replace(tmp, path)
         return path
+
+
+def versions() -> dict[str, str]:
+    """warpsoft's, Warp's, NumPy's and Python's versions."""
+    import platform
+
+    import warp as wp
+
+    from .. import __version__
+
+    return {"warpsoft": __version__, "warp": wp.__version__, "numpy": np.__version__,
+            "python": platform.python_version()}

@@ -6,11 +6,14 @@ import ast
 import importlib.util
 import inspect
 import json
+import signal
 import sys
+import threading
+from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 
-from ..errors import SceneError, SimulationError
+from ..errors import SceneError, WarpsoftError
 from ..scene import Scene
 from ..simulator import Simulator
 from .report import RunReport
@@ -68,27 +71,95 @@ def build_scene(path: str | Path, params: dict | None = None) -> Scene:
     if not isinstance(scene, Scene):
         raise SceneError(f"scene {Path(path).name}: build() returned {type(scene).__name__}, not a warpsoft Scene")
     scene.params = params
+    scene.params_used = {k: p.default for k, p in sig.parameters.items()
+                         if p.default is not inspect.Parameter.empty} | params  # defaults included
     return scene
+
+
+class Interrupted(BaseException):
+    """The run was asked to stop (SIGINT or SIGTERM). A BaseException, as KeyboardInterrupt is:
+    code that catches every Exception (a QP wrapper, the user's own) must not swallow it."""
+
+
+def check_output(path: str | Path | None, what: str, suffixes: tuple[str, ...] | None = None) -> Path | None:
+    """Fail before any compute when an output cannot be written: its folder must exist or be
+    creatable, the file must open for writing, the path must not be a folder, and its extension
+    must be one of ``suffixes``."""
+    if path is None:
+        return None
+    path = Path(path)
+    if suffixes is not None and path.suffix not in suffixes:
+        raise SceneError(f"{what} {str(path)!r}: the extension must be one of {', '.join(suffixes)}")
+    if path.is_dir():
+        raise SceneError(f"{what} {str(path)!r} is a folder, not a file")
+    try:  # the real test: create the folders and open the file for appending
+        path.parent.mkdir(parents=True, exist_ok=True)
+        existed = path.exists()
+        with open(path, "a"):
+            pass
+        if not existed:
+            path.unlink()
+    except OSError as exc:
+        raise SceneError(f"{what} {str(path)!r} cannot be written ({exc.strerror or exc}); nothing was run") from None
+    return path
+
+
+def check_device(device: str | None) -> None:
+    """A device Warp knows on this machine, else a clear error."""
+    if device is None:
+        return
+    import warp as wp
+
+    if device.startswith("cuda") and not wp.is_cuda_available():
+        raise SceneError(f"run: device {device!r} asked for, but Warp sees no CUDA device here")
+    try:
+        wp.get_device(device)
+    except (ValueError, RuntimeError) as exc:
+        known = ", ".join(str(d) for d in wp.get_devices())
+        raise SceneError(f"run: unknown device {device!r} (this machine has: {known})") from exc
+
+
+@contextmanager
+def stop_on_signals():
+    """SIGINT and SIGTERM raise :class:`Interrupted` inside the run (main thread only), so that
+    the run ends cleanly and keeps what it finished; the previous handlers come back after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Interrupted(signal.Signals(signum).name)
+
+    saved = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)
 
 
 def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: str | Path | None = None,
         report: str | Path | None = None, solver: str = "auto", tolerance: float = 1e-6, progress: bool = False,
-        scene_file: str | None = None) -> RunReport:
+        scene_file: str | None = None, flush_every: int = 50) -> RunReport:
     """Simulate ``steps`` steps (the scene's default if None), optionally writing USD and a JSON report.
 
-    A step that fails (non-finite state) stops the run; what was recorded up to it is still
-    written, and the error is raised afterwards.
+    Outputs are checked before anything runs, and written as the run goes (every
+    ``flush_every`` steps and at its end), so a run that fails, is interrupted (SIGINT, SIGTERM) or
+    is killed keeps the steps it finished. The report's ``status`` says how it ended
+    (completed, failed, interrupted) and ``error`` why; a failure is raised again after the
+    outputs are written, an interruption returns the report.
     """
     steps = scene.steps if steps is None else int(steps)
     if steps < 1:
         raise SceneError(f"run: steps must be >= 1, got {steps}")
-    if device is not None and device.startswith("cuda"):
-        import warp as wp
-
-        if not wp.is_cuda_available():
-            raise SceneError(f"run: device {device!r} asked for, but Warp sees no CUDA device here")
+    if int(flush_every) < 1:
+        raise SceneError(f"run: flush_every must be >= 1, got {flush_every}")
+    report = check_output(report, "report")
+    usd = check_output(usd, "USD output", (".usda", ".usdc", ".usd"))
+    check_device(device)
     sim = Simulator(scene, device=device, solver=solver, tolerance=tolerance)
-    rep = RunReport(sim, scene_file=scene_file, params=scene.params)
+    rep = RunReport(sim, scene_file=scene_file, params=scene.params, params_used=getattr(scene, "params_used", None),
+                    options={"solver": solver, "tolerance": tolerance, "steps": steps})
     writer = None
     if usd is not None:
         from .usd import UsdWriter
@@ -96,27 +167,41 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
         writer = UsdWriter(usd, sim.model)
         writer.write_frame(0, sim.state.positions(), sim.probe_positions())
         writer.write_rows(0, sim.constraint_geometry())
+
+    def flush() -> None:
+        if writer is not None:
+            writer.save()
+        if report is not None:
+            rep.write(report)
+
     failure = None
     iterator = range(steps)
     if progress:
         from tqdm import tqdm
 
         iterator = tqdm(iterator, desc=scene.name, unit="step", disable=None)
-    try:
-        for _ in iterator:
-            stats = sim.step()
-            probes = sim.probe_positions()
-            rep.record(stats, probes)
-            if writer is not None:
-                writer.write_frame(stats.index, sim.state.positions(), probes)
-                writer.write_rows(stats.index, sim.constraint_geometry())
-    except SimulationError as exc:
-        failure = exc
-    finally:
-        if writer is not None:
-            writer.save()
-        if report is not None:
-            rep.write(report)
+    with stop_on_signals():
+        try:
+            flush()  # the outputs exist from the start (status "running")
+            for k in iterator:
+                stats = sim.step()
+                probes = sim.probe_positions()
+                rep.record(stats, probes)
+                if writer is not None:
+                    writer.write_frame(stats.index, sim.state.positions(), probes)
+                    writer.write_rows(stats.index, sim.constraint_geometry())
+                if (k + 1) % int(flush_every) == 0:
+                    flush()
+            rep.status = "completed"
+        except (Interrupted, KeyboardInterrupt) as exc:
+            rep.status, rep.error = "interrupted", f"stopped by {exc or 'SIGINT'} after {len(rep.steps)} steps"
+        except WarpsoftError as exc:
+            rep.status, rep.error = "failed", f"{type(exc).__name__}: {exc}"
+            failure = exc
+        finally:
+            if rep.status == "running":  # an error of another kind: record it, then let it go on
+                rep.status, rep.error = "failed", "an unexpected error stopped the run (see the traceback)"
+            flush()
     if failure is not None:
         raise failure
     return rep

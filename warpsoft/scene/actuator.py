@@ -6,7 +6,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ..errors import SceneError
+from ..errors import SceneError, call_user
 
 MODES = ("displacement", "force")
 
@@ -63,7 +63,8 @@ class Actuator:
 
     def input_at(self, t: float) -> float:
         """The input at time ``t`` (s); a non-finite value is an error naming the actuator."""
-        v = self.value(t) if callable(self.value) else self.value
+        v = call_user(self.value, t, f"{self.kind} '{self.name}': its input schedule") if callable(self.value) \
+            else self.value
         try:
             v = float(v)
         except (TypeError, ValueError):

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SceneError
+from ..errors import SceneError, call_user
 
 
 @dataclass
@@ -38,7 +38,8 @@ class Effector:
         """The target (m) at time ``t`` (s); NaN or a wrong shape is an error naming the effector."""
         if self.target is None:
             return self.point
-        v = self.target(t) if callable(self.target) else self.target
+        v = call_user(self.target, t, f"effector '{self.name}': its target function") if callable(self.target) \
+            else self.target
         try:
             v = np.asarray(v, dtype=float)
         except (TypeError, ValueError):
