@@ -37,6 +37,23 @@ def test_quasi_static_body_without_fixture_is_singular():
         ws.Simulator(scene)
 
 
+@pytest.mark.parametrize("held, free", [
+    (ws.Box((-1e-6, -1e-6, -1e-6), (1e-6, 1e-6, 1e-6)), 3),  # one corner node: rotations about it
+    (ws.Box((-1e-6, -1e-6, -1), (1e-6, 1e-6, 1)), 1),  # one edge: rotation about it
+])
+def test_quasi_static_body_held_at_a_node_or_an_edge_is_singular(held, free):
+    """Held at one node (or along one line of nodes), a static body still turns freely about it:
+    K is singular (v1 gave tips at 5.8e8 m with the direct solver, 1e27 m with CG)."""
+    scene = ws.Scene("pinned", static=True)
+    scene.fix(scene.add_body("beam", MESH, MAT), held)
+    with pytest.raises(ws.SceneError, match=rf"body 'beam' is held at \d+ node\(s\): {free} rigid-body motion\(s\) "
+                                            r"stay free"):
+        ws.Simulator(scene)
+    ok = ws.Scene("clamped", static=True)
+    ok.fix(ok.add_body("beam", MESH, MAT), CLAMP)
+    ws.Simulator(ok)  # a clamped face holds all six
+
+
 def test_bad_scene_components_are_named():
     scene = ws.Scene("s", static=True)
     body = scene.add_body("beam", MESH, MAT)
@@ -108,3 +125,19 @@ def test_bad_simulator_options():
         ws.Simulator(scene, solver="lu")
     with pytest.raises(ws.SceneError, match="tolerance must lie in"):
         ws.Simulator(scene, tolerance=0.0)
+
+
+def test_a_finite_but_absurd_load_is_rejected_and_the_state_kept():
+    """A load of -1e300 N at step 5: positions would be ~1e298 m (finite); the step is refused
+    like a NaN one, the state of step 4 kept."""
+    scene = ws.Scene("absurd", dt=0.01)
+    body = scene.add_body("beam", MESH, MAT)
+    scene.fix(body, CLAMP)
+    scene.add_force(body, ws.Plane((0.04, 0, 0), (1, 0, 0)), lambda t: (0.0, 0.0, -1e300 if t > 0.045 else -0.01))
+    sim = ws.Simulator(scene, solver="direct")
+    for _ in range(4):
+        sim.step()
+    before = sim.positions()
+    with pytest.raises(ws.SimulationError, match=r"step 5 .* more than 10 times the model's size"):
+        sim.step()
+    assert np.array_equal(sim.positions(), before) and np.abs(before).max() < 1.0

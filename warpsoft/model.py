@@ -138,6 +138,9 @@ class Model:
                 ids = np.flatnonzero(wts)
                 self.load_weights.append((load, ids + self.body_info(load.body.name, w).node_start, wts[ids]))
         self.mask_np = mask
+        if self.static:
+            for b in self.bodies:
+                check_held(self.scenes[b.world].name, b, self.rest_np, mask)
         self.mask = wp.array(mask, dtype=wp.vec3d, device=d)
         self.num_fixed_dofs = int((mask == 0).sum())
 
@@ -205,3 +208,28 @@ class Model:
                 raise SceneError(f"load '{load.name}': total({t:g}) must return 3 finite numbers, got {total!r}")
             f[ids] += w[:, None] * total[None, :]
         return f
+
+
+def check_held(scene: str, body: BodyInfo, rest: np.ndarray, mask: np.ndarray) -> None:
+    """A quasi-static body must be held against all six rigid-body motions (K alone is singular
+    otherwise: v1 returned tips at 5.8e8 m). The fixed DOFs' rows of the rigid-motion basis
+    (three translations, three rotations about the body's centre) must have rank 6."""
+    ids = np.arange(body.node_start, body.node_start + body.node_count)
+    r = rest[ids] - rest[ids].mean(axis=0)
+    r = r / max(float(np.abs(r).max()), 1e-300)  # rotations and translations on one scale
+    node, axis = np.nonzero(mask[ids] == 0.0)
+    if len(node):
+        basis = np.zeros((len(node), 6))
+        basis[np.arange(len(node)), axis] = 1.0  # translations
+        x, y, z = r[node].T
+        rot = np.stack([np.stack([0 * x, -z, y], 1), np.stack([z, 0 * x, -x], 1), np.stack([-y, x, 0 * x], 1)], 2)
+        basis[:, 3:] = rot[np.arange(len(node)), axis]  # (e_k x r) along the fixed axis
+        rank = int(np.linalg.matrix_rank(basis, tol=1e-8))
+    else:
+        rank = 0
+    if rank < 6:
+        held = len(np.unique(node))
+        raise SceneError(f"scene '{scene}' is quasi-static and body '{body.name}' is held at {held} node(s): "
+                         f"{6 - rank} rigid-body motion(s) stay free, so its stiffness is singular; fix at least "
+                         "three nodes that are not on one line (e.g. a ws.Plane region), or make the scene dynamic")
+

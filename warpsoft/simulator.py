@@ -120,6 +120,7 @@ class Simulator:
             if not self.device_inverse.usable:
                 raise SceneError(f"Simulator: qp='device' takes at most {NMAX} actuators per world, got "
                                  f"{int(max(self.rows.world_actuators))}; use qp='piqp'")
+        self.out_of_reach: dict[int, tuple] = {}  # per inverse world: (last effector error, bounds holding it)
         self._stepped = False
         self.values = None  # the actuator inputs of the current step, (rows,)
         # on CUDA, the device part of a step is replayed as graphs when the solver allows it
