@@ -157,6 +157,22 @@ def test_coincident_cable_points_make_no_nan():
     assert stats.actuator_delta["c"] == pytest.approx(0.002, rel=1e-3)
 
 
+def test_a_pull_point_on_a_moving_part_is_an_error():
+    """A cable pulled from a point inside the moving beam, or from its own first path point where
+    that point moves, would turn or reverse its command: clear errors. On the clamped face the
+    same coincident pull point is still fine (the v1 case just above)."""
+    scene, body = beam()
+    scene.add_cable("inside", body, points=[(0.08, 0, 0.004)], pull_point=(0.04, 0, 0.004))
+    with pytest.raises(ws.SceneError, match=r"cable 'inside': its pull point .* lies inside body 'beam' where the "
+                                            r"body moves"):
+        ws.Simulator(scene)
+    scene, body = beam()
+    on_top = (0.05, 0, H / 2 + 1e-4)  # just above the top face: mapped by extrapolation, and moving
+    scene.add_cable("own", body, points=[on_top, (0.09, 0, 0.004)], pull_point=on_top)
+    with pytest.raises(ws.SceneError, match=r"cable 'own': its pull point is its first path point .* which moves"):
+        ws.Simulator(scene)
+
+
 def test_bad_rows_are_named():
     scene, body = beam()
     with pytest.raises(ws.SceneError, match=r"cable 'c': min_force must be >= 0 N"):

@@ -10,6 +10,8 @@ import warp as wp
 
 from warpsoft.kernels.rows import cable as kernels
 
+from ..errors import SceneError
+from ..mapping import barycentric, locate
 from .kind import RowKind
 
 
@@ -22,6 +24,8 @@ class CableRows(RowKind):
 
     def __init__(self, model, placed, entry_offset):
         super().__init__(model, placed, entry_offset)
+        for p in placed:
+            check_pull_point(model, p)
         d = model.device
         counts = np.array([p.num_points for p in placed], dtype=np.int32)
         self.point_offset = placed[0].first_point
@@ -44,3 +48,30 @@ class CableRows(RowKind):
         """Each cable's polyline (m, pull point first) in ``world`` from the mapped points ``(p, 3)``."""
         return {p.item.name: np.vstack([p.item.pull_point, points[p.first_point:p.first_point + p.num_points]])
                 for p in self.placed if p.world == world}
+
+
+def check_pull_point(model, placed) -> None:
+    """A cable is pulled from a point fixed in space. One inside a moving part of its body would
+    be passed by the body, and one on the first path point where that point moves leaves the
+    pull without a direction: either turns or reverses the command, so both are errors. (A pull
+    point on the body's fixed face is fine: only fixed nodes carry it.)"""
+    cable, info = placed.item, model.body_info(placed.item.body.name, placed.world)
+    nodes = model.rest_np
+    tets = model.tets_np[info.elem_start:info.elem_start + info.elem_count]
+
+    def moves(ids: np.ndarray, weights: np.ndarray) -> bool:  # the point's nodes (weight != 0) not all fixed
+        return bool(np.any(model.mask_np[ids[np.abs(weights) > 1e-9]] != 0.0))
+
+    lam = barycentric(nodes, tets, cable.pull_point)
+    inside = np.flatnonzero(lam.min(axis=1) >= -1e-9)
+    if any(moves(tets[e], lam[e]) for e in inside):
+        raise SceneError(f"cable '{cable.name}': its pull point {cable.pull_point.tolist()} m lies inside body "
+                         f"'{info.name}' where the body moves; a cable is pulled from a fixed point: put it "
+                         "outside the body (behind its base) or in its fixed region")
+    first = cable.points[0]
+    if np.linalg.norm(first - cable.pull_point) <= 1e-9 * max(float(np.ptp(nodes[tets.ravel()], axis=0).max()), 1e-3):
+        ids, w = locate(nodes, tets, first[None], [f"cable '{cable.name}' point 0"])
+        if moves(ids[0], w[0]):
+            raise SceneError(f"cable '{cable.name}': its pull point is its first path point "
+                             f"{first.tolist()} m, which moves with the body: the pull has no direction; "
+                             "put the pull point behind the first point, e.g. outside the body")
