@@ -116,6 +116,19 @@ def test_cg_that_does_not_converge_is_reported():
     assert not stats.converged and stats.cg_iterations == 5
     assert stats.warnings and "CG (free solve) stopped after 5 iterations" in stats.warnings[0]
     assert any(issubclass(w.category, ws.ConvergenceWarning) for w in caught)
+    assert "ill-conditioned" in stats.warnings[0] and "use solver='pcg'" in stats.warnings[0]  # what to do
+
+
+def test_a_nearly_incompressible_body_that_stops_cg_is_named_as_such():
+    """Poisson ratio 0.49: the warning says why CG stalls (incompressibility, locking) and what to
+    do, not only that it stopped."""
+    scene = ws.Scene("s", static=True)
+    body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), ws.Material(1e5, 0.49))
+    scene.fix(body, CLAMP)
+    scene.add_force(body, ws.Plane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.01))
+    with pytest.warns(ws.ConvergenceWarning, match=r"nearly incompressible \(Poisson ratio up to 0.49\).*lock.*"
+                                                   r"use solver='pcg'"):
+        ws.Simulator(scene, solver="jacobi", max_iterations=20).step()
 
 
 def test_bad_simulator_options():

@@ -104,6 +104,8 @@ class Model:
         self.elem_world = wp.array(self.elem_world_np, dtype=wp.int32, device=d)
         self.mu = wp.array(np.concatenate(mu), dtype=wp.float64, device=d)
         self.lam = wp.array(np.concatenate(lam), dtype=wp.float64, device=d)
+        mu_np, lam_np = np.concatenate(mu), np.concatenate(lam)
+        self.poisson_np = lam_np / (2.0 * (lam_np + mu_np))  # per element, from the Lame parameters
         self.dm_inv = wp.zeros(self.num_elements, dtype=wp.mat33d, device=d)
         self.volume = wp.zeros(self.num_elements, dtype=wp.float64, device=d)
         wp.launch(geometry.tet_rest_shape, self.num_elements, inputs=[self.rest, self.tets],

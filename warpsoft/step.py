@@ -189,9 +189,22 @@ def finish_solve(sim: Simulator, stats: StepStats, res) -> None:
         ws.cg_iterations = int(per_world[w]) if per_world is not None else res.iterations
     if not res.converged:
         msg = (f"step {stats.index}: CG ({what}) stopped after {res.iterations} iterations at relative residual "
-               f"{res.residual:.3e} > tolerance {sim.solver.tolerance:.1e}")
+               f"{res.residual:.3e} > tolerance {sim.solver.tolerance:.1e}; {convergence_advice(sim)}")
         stats.warnings.append(msg)
         warnings.warn(msg, ConvergenceWarning, stacklevel=4)
+
+
+def convergence_advice(sim: Simulator) -> str:
+    """What a CG that stopped short means here, and what to do about it."""
+    nu = sim.model.poisson_np
+    why = (f"the material is nearly incompressible (Poisson ratio up to {nu.max():.3g}), which makes the system "
+           "ill-conditioned (and the elements lock: too stiff at coarse meshes)" if nu.max() >= 0.45
+           else "the system is ill-conditioned (stiff, or with a large stiffness contrast)")
+    if sim.solver_name == "jacobi":
+        todo = "use solver='pcg' (tens of iterations) or 'direct' (exact)"
+    else:
+        todo = "use solver='direct' (exact), or raise max_iterations or the tolerance"
+    return f"{why}; {todo}"
 
 
 def host_inputs(sim: Simulator, t: float, controls: list[Control | None]) -> None:
