@@ -143,6 +143,7 @@ def test_report_says_how_the_run_ended_and_with_what(tmp_path):
     assert d["params"] == {"mesh_size": 0.005}
     assert d["params_used"]["mesh_size"] == 0.005 and d["params_used"]["length"] == 0.1  # defaults included
     assert d["options"] == {"solver": "auto", "tolerance": 1e-6, "steps": 2}
+    assert d["inverted_elements"] == [0, 0]
 
 
 def test_an_error_in_the_scenes_own_code_is_named_and_the_finished_steps_kept(tmp_path, capsys):

@@ -92,6 +92,7 @@ class Simulator:
         self.dx = wp.zeros(n, dtype=wp.vec3d, device=d)  # m
         self.health_flag = wp.zeros(1, dtype=wp.int32, device=d)  # count of non-finite nodes
         self.health_step = wp.zeros(1, dtype=wp.float64, device=d)  # largest |dx|^2 (m^2)
+        self.inverted = wp.zeros(m.num_worlds, dtype=wp.int32, device=d)  # elements with det F <= 0, per world
         self.size = float(np.linalg.norm(np.ptp(m.rest_np, axis=0)))  # model size (m) for step-size warnings
 
         h = m.dt
@@ -121,6 +122,8 @@ class Simulator:
                 raise SceneError(f"Simulator: qp='device' takes at most {NMAX} actuators per world, got "
                                  f"{int(max(self.rows.world_actuators))}; use qp='piqp'")
         self.out_of_reach: dict[int, tuple] = {}  # per inverse world: (last effector error, bounds holding it)
+        self.episodes: dict[tuple, bool] = {}  # (what, world) -> whether a warning about it is in force
+        self.row_delta_prev = np.zeros(self.rows.num_rows if self.rows is not None else 0)  # rows after the last step
         self._stepped = False
         self.values = None  # the actuator inputs of the current step, (rows,)
         # on CUDA, the device part of a step is replayed as graphs when the solver allows it
@@ -140,7 +143,7 @@ class Simulator:
 
         # what the host reads of a step, in one transfer each: before the inverse model's QP, and
         # after the step (the solver's outcome, health, rows at the new state)
-        after = {"health_flag": self.health_flag, "health_step": self.health_step}
+        after = {"health_flag": self.health_flag, "health_step": self.health_step, "inverted": self.inverted}
         after |= getattr(self.solver, "readback_arrays", dict)()
         self.before_qp = None
         if self.rows is not None:

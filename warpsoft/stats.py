@@ -20,13 +20,17 @@ class WorldStats:
     QP status and time in s: 0 for the device QP, which runs inside the step's graph and gives
     its active-set iterations as ``resolve_iterations``), and its rows after the step by name:
     actuator ``delta`` (cable m, cavity m^3) and ``lambda`` (N, Pa), effector positions and
-    targets (m) and the distance between them on the controlled axes (m)."""
+    targets (m) and the distance between them on the controlled axes (m); its elements turned
+    inside out after the step (``det F <= 0``) and, in the direct model, how far each
+    displacement-driven actuator is from its command this step (cable m, cavity m^3)."""
 
     cg_iterations: int = 0
     resolve_iterations: int = 0
     resolve_residual: float = 0.0
     qp_status: str = ""
     qp_seconds: float = 0.0
+    inverted_elements: int = 0
+    actuator_residual: dict[str, float] = field(default_factory=dict)
     effector_error: dict[str, float] = field(default_factory=dict)
     actuator_delta: dict[str, float] = field(default_factory=dict)
     actuator_lambda: dict[str, float] = field(default_factory=dict)
@@ -79,3 +83,5 @@ class StepStats:
     actuator_lambda = _of_the_world("actuator_lambda")
     effectors = _of_the_world("effectors")
     targets = _of_the_world("targets")
+    inverted_elements = _of_the_world("inverted_elements")
+    actuator_residual = _of_the_world("actuator_residual")

@@ -17,9 +17,11 @@ import numpy as np
 import warp as wp
 
 from warpsoft.kernels import integrate
+from warpsoft.kernels.elastic import geometry
 from warpsoft.kernels.linear import cg as linalg
 from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
 
+from . import watch
 from .errors import SceneError, SimulationError
 from .resolve import RowInputs, solve_inverse
 from .state import Control
@@ -78,7 +80,8 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
             after_resolve(sim, actuated)
             sim.after_step.gather()
             host = sim.after_step.read()
-    check_health(sim, stats, host)
+    watch.health(sim, stats, host)
+    watch.inverted_elements(sim, stats, host)
     if rows is not None:
         record_rows(sim, stats, host)  # the rows at the new state: what the report records
     if sim.device_inverse is not None:
@@ -117,6 +120,9 @@ def after_resolve(sim: Simulator, actuated: bool) -> None:
     sim.health_step.zero_()
     wp.launch(linalg.step_health, m.num_nodes, inputs=[sim.next.q, dx], outputs=[sim.health_flag, sim.health_step],
               device=m.device)
+    sim.inverted.zero_()
+    wp.launch(geometry.count_inverted, m.num_elements, inputs=[sim.next.q, m.tets, m.dm_inv, m.elem_world],
+              outputs=[sim.inverted], device=m.device)
     if rows is not None:
         rows.evaluate(sim.next.q)
 
@@ -292,32 +298,6 @@ def row_inputs(host: np.ndarray, values: np.ndarray, delta: np.ndarray, a: slice
                      dmin=np.clip(host[k.DMIN, a], lo_step, hi_step), dmax=np.clip(host[k.DMAX, a], lo_step, hi_step))
 
 
-ABSURD_STEP = 10.0  # a node moving this many times the model's size in one step: rejected like a NaN
-
-
-def check_health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
-    """No NaN leaves a step: a non-finite node is an error, and so is a node that moved more
-    than ``ABSURD_STEP`` times the model's size in one step (finite but absurd: a load of 1e300 N
-    put positions at 1e298 m and "-inf" in the report); more than the model's size is a warning."""
-    bad, largest = int(host["health_flag"][0]), float(np.sqrt(host["health_step"][0]))
-    if not bad and largest > ABSURD_STEP * sim.size:
-        sim.forget_warm_starts()
-        raise SimulationError(
-            f"step {stats.index} (t = {stats.time:g} s): a node moved {largest:.3g} m in one step, more than "
-            f"{ABSURD_STEP:g} times the model's size ({sim.size:.3g} m): loads or inputs out of all proportion "
-            "(or a diverging solve); the state before the step is kept")
-    if largest > sim.size:
-        stats.warnings.append(f"step {stats.index}: a node moved {largest:.3g} m in one step, more than the "
-                              f"model's size {sim.size:.3g} m: the simulation is likely unstable")
-    if bad:
-        sim.forget_warm_starts()
-        raise SimulationError(
-            f"step {stats.index} (t = {stats.time:g} s): {bad} node(s) got non-finite positions "
-            f"(CG {stats.cg_iterations} iterations, residual {stats.cg_residual:.3e}); "
-            "the state before the step is kept"
-        )
-
-
 def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
     """Each world's rows at the new state (evaluated on the device by the step), by name, and the
     Gauss-Seidel statistics, from the step's read (``host``)."""
@@ -335,46 +315,14 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
         ws.effector_error = {e.name: float(np.linalg.norm((ws.effectors[e.name] - ws.targets[e.name])[e.axis_ids]))
                              for e in rows.effectors[w] if e.target is not None}
         if acts and sim.model.scenes[w].inverse:
-            warn_out_of_reach(sim, stats, w, delta[a], lam[a])
+            watch.out_of_reach(sim, stats, w, delta[a], lam[a])
+        elif acts:
+            watch.actuator_residuals(sim, stats, w, delta[a])
         if acts and not sim.model.scenes[w].inverse:
             ws.resolve_iterations, ws.resolve_residual = int(result[w, 0]), float(result[w, 1])
             if not result[w, 2]:
                 stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: Gauss-Seidel stopped after "
                                       f"{ws.resolve_iterations} sweeps, last change {ws.resolve_residual:.3e}")
-
-
-OUT_OF_REACH = 1e-3  # effector error, in model sizes, past which an inverse world says what holds it back
-
-
-def warn_out_of_reach(sim: Simulator, stats: StepStats, w: int, delta: np.ndarray, lam: np.ndarray) -> None:
-    """An inverse world whose target is out of reach says so, once per episode: which effector
-    misses by how much, and which actuators sit on a bound (displacement or force) when it begins.
-    Out of reach: the error is not small and no longer shrinks (while it shrinks, the world is
-    on its way, held only by the change allowed per step), and some actuator is on a bound."""
-    rows, ws = sim.rows, stats.worlds[w]
-    worst = max(ws.effector_error.items(), key=lambda kv: kv[1], default=(None, 0.0))
-    last_error, last_held = sim.out_of_reach.get(w, (np.inf, ()))
-    held = ()
-    if worst[1] > OUT_OF_REACH * sim.size and worst[1] >= (1.0 - 1e-3) * last_error:
-        g, k, start = sim.gauss_seidel.host, gs_kernels, rows.world_row_start[w]
-        found = []
-        for i, act in enumerate(rows.actuators[w]):
-            r = start + i
-            for value, bound, side, what in ((delta[i], g[k.DMAX, r], 1, "largest displacement"),
-                                             (delta[i], g[k.DMIN, r], -1, "smallest displacement"),
-                                             (lam[i], g[k.HI, r], 1, "largest force"),
-                                             (lam[i], g[k.LO, r], -1, "smallest force")):
-                # on it (the geometry may take a displacement a little past the QP's linear bound)
-                if np.isfinite(bound) and side * (value - bound) >= -(1e-2 if "displacement" in what else 1e-9) * \
-                        max(abs(bound), 1e-12):
-                    found.append(f"{act.name} (at its {what}, {bound:g})")
-                    break
-        held = tuple(found)
-        if held and not last_held:  # entering the state: said once (the bounds may take turns after)
-            stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: the target is out of reach: "
-                                  f"effector '{worst[0]}' misses it by {worst[1]:.3g} m; held back by "
-                                  f"{', '.join(held)}")
-    sim.out_of_reach[w] = (worst[1], held)
 
 
 @contextmanager

@@ -74,3 +74,19 @@ def lumped_mass(
     m = wp.float64(0.25) * density[e] * volume[e]
     for a in range(4):
         wp.atomic_add(mass, t[a], m)
+
+
+@wp.kernel
+def count_inverted(
+    q: wp.array(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    elem_world: wp.array(dtype=wp.int32),
+    inverted: wp.array(dtype=wp.int32),
+):
+    """``inverted[w]`` counts world ``w``'s elements turned inside out at ``q`` (``det F <= 0``)."""
+    e = wp.tid()
+    t = tets[e]
+    F = edge_matrix(q[t[0]], q[t[1]], q[t[2]], q[t[3]]) * dm_inv[e]
+    if wp.determinant(F) <= wp.float64(0.0):
+        wp.atomic_add(inverted, elem_world[e], 1)

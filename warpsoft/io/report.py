@@ -69,7 +69,8 @@ class RunReport:
         acts, effs = self.sim.rows.actuators[0], self.sim.rows.effectors[0]  # a run is one world
         actuators = {a.name: {"kind": a.kind, "mode": a.mode,
                               "delta": [s.actuator_delta[a.name] for s in self.steps],
-                              "lambda": [s.actuator_lambda[a.name] for s in self.steps]} for a in acts}
+                              "lambda": [s.actuator_lambda[a.name] for s in self.steps],
+                              "residual": [s.actuator_residual.get(a.name) for s in self.steps]} for a in acts}
         effectors = {e.name: [np.asarray(s.effectors[e.name]).tolist() for s in self.steps] for e in effs}
         out = {"actuators": actuators, "effectors": effectors,
                "W": self.W, "W_units": "cable m/N, cavity m^3/Pa (rows and columns in actuator order)",
@@ -118,6 +119,7 @@ class RunReport:
                 "residuals": [s.cg_residual for s in self.steps],
                 "converged": [s.converged for s in self.steps],
             },
+            "inverted_elements": [s.inverted_elements for s in self.steps],
             "stages_run": stage_names,
             "timings": {
                 "note": "seconds; statistics exclude step 1 (kernel compilation) when there are 2+ steps",

@@ -1,0 +1,125 @@
+"""What a step watches for after it ran, from the step's one read: non-finite or absurd motion
+(errors, the state kept), and, as warnings said once per episode, elements turned inside out,
+actuators that miss their command, and inverse targets out of reach."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
+
+from .errors import SimulationError
+from .stats import StepStats
+
+if TYPE_CHECKING:
+    from .simulator import Simulator
+
+
+def begins(sim: Simulator, key: tuple, active: bool) -> bool:
+    """Whether a warning episode ``key`` begins now (it was not in force and ``active`` is)."""
+    was = sim.episodes.get(key, False)
+    sim.episodes[key] = bool(active)
+    return bool(active) and not was
+
+
+ABSURD_STEP = 10.0  # a node moving this many times the model's size in one step: rejected like a NaN
+
+
+def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
+    """No NaN leaves a step: a non-finite node is an error, and so is a node that moved more
+    than ``ABSURD_STEP`` times the model's size in one step (finite but absurd: a load of 1e300 N
+    put positions at 1e298 m and "-inf" in the report); more than the model's size is a warning."""
+    bad, largest = int(host["health_flag"][0]), float(np.sqrt(host["health_step"][0]))
+    if not bad and largest > ABSURD_STEP * sim.size:
+        sim.forget_warm_starts()
+        raise SimulationError(
+            f"step {stats.index} (t = {stats.time:g} s): a node moved {largest:.3g} m in one step, more than "
+            f"{ABSURD_STEP:g} times the model's size ({sim.size:.3g} m): loads or inputs out of all proportion "
+            "(or a diverging solve); the state before the step is kept")
+    if largest > sim.size:
+        stats.warnings.append(f"step {stats.index}: a node moved {largest:.3g} m in one step, more than the "
+                              f"model's size {sim.size:.3g} m: the simulation is likely unstable")
+    if bad:
+        sim.forget_warm_starts()
+        raise SimulationError(
+            f"step {stats.index} (t = {stats.time:g} s): {bad} node(s) got non-finite positions "
+            f"(CG {stats.cg_iterations} iterations, residual {stats.cg_residual:.3e}); "
+            "the state before the step is kept"
+        )
+
+
+def inverted_elements(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
+    """Each world's count of elements turned inside out (``det F <= 0``) after the step; a
+    warning when some appear (a very soft body under load, a step too large)."""
+    for w, ws in enumerate(stats.worlds):
+        ws.inverted_elements = int(host["inverted"][w])
+        if begins(sim, ("inverted", w), ws.inverted_elements > 0):
+            stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: {ws.inverted_elements} element(s) turned "
+                                  "inside out (det F <= 0): the material is too soft for the loads, or the step too "
+                                  "large; the corotational model keeps going, but the result is not physical there")
+
+
+MISSED_COMMAND = 0.05  # relative miss of a displacement command, past which a direct-model actuator warns
+
+
+def actuator_residuals(sim: Simulator, stats: StepStats, w: int, delta: np.ndarray) -> None:
+    """Direct model: how far each displacement-driven actuator is from what it was asked for
+    this step (its input within its bounds and its step limit), in its units (cable m, cavity
+    m^3); a warning when one misses by more than ``MISSED_COMMAND`` of the command (and more
+    than a floor tied to the model's size)."""
+    rows, ws = sim.rows, stats.worlds[w]
+    g, k, start = sim.gauss_seidel.host, gs_kernels, rows.world_row_start[w]
+    prev = sim.row_delta_prev
+    missed = []
+    for i, act in enumerate(rows.actuators[w]):
+        r = start + i
+        if g[k.FORCE_MODE, r]:
+            continue
+        aim = float(np.clip(sim.values[r], g[k.DMIN, r], g[k.DMAX, r]))
+        aim = float(np.clip(aim, prev[r] - g[k.MAX_STEP, r], prev[r] + g[k.MAX_STEP, r]))
+        miss = abs(float(delta[i]) - aim)
+        ws.actuator_residual[act.name] = miss
+        floor = 1e-4 * (sim.size if act.kind == "cable" else sim.size ** 3)
+        if miss > MISSED_COMMAND * abs(aim) + floor:
+            missed.append(f"{act.name} ({float(delta[i]):.4g} for {aim:.4g})")
+    prev[start:start + len(delta)] = delta
+    if begins(sim, ("missed", w), bool(missed)):
+        stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: actuator(s) missing their command: "
+                              f"{', '.join(missed)}: the body cannot follow (too soft, a large step, or bounds); "
+                              "see each step's actuator_residual")
+
+
+OUT_OF_REACH = 1e-3  # effector error, in model sizes, past which an inverse world says what holds it back
+
+
+def out_of_reach(sim: Simulator, stats: StepStats, w: int, delta: np.ndarray, lam: np.ndarray) -> None:
+    """An inverse world whose target is out of reach says so, once per episode: which effector
+    misses by how much, and which actuators sit on a bound (displacement or force) when it begins.
+    Out of reach: the error is not small and no longer shrinks (while it shrinks, the world is
+    on its way, held only by the change allowed per step), and some actuator is on a bound."""
+    rows, ws = sim.rows, stats.worlds[w]
+    worst = max(ws.effector_error.items(), key=lambda kv: kv[1], default=(None, 0.0))
+    last_error, last_held = sim.out_of_reach.get(w, (np.inf, ()))
+    held = ()
+    if worst[1] > OUT_OF_REACH * sim.size and worst[1] >= (1.0 - 1e-3) * last_error:
+        g, k, start = sim.gauss_seidel.host, gs_kernels, rows.world_row_start[w]
+        found = []
+        for i, act in enumerate(rows.actuators[w]):
+            r = start + i
+            for value, bound, side, what in ((delta[i], g[k.DMAX, r], 1, "largest displacement"),
+                                             (delta[i], g[k.DMIN, r], -1, "smallest displacement"),
+                                             (lam[i], g[k.HI, r], 1, "largest force"),
+                                             (lam[i], g[k.LO, r], -1, "smallest force")):
+                # on it (the geometry may take a displacement a little past the QP's linear bound)
+                if np.isfinite(bound) and side * (value - bound) >= -(1e-2 if "displacement" in what else 1e-9) * \
+                        max(abs(bound), 1e-12):
+                    found.append(f"{act.name} (at its {what}, {bound:g})")
+                    break
+        held = tuple(found)
+        if held and not last_held:  # entering the state: said once (the bounds may take turns after)
+            stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: the target is out of reach: "
+                                  f"effector '{worst[0]}' misses it by {worst[1]:.3g} m; held back by "
+                                  f"{', '.join(held)}")
+    sim.out_of_reach[w] = (worst[1], held)
