@@ -91,3 +91,42 @@ def test_mesh_cache_returns_the_same_mesh(tmp_path, monkeypatch):
     assert np.array_equal(first.nodes, again.nodes) and np.array_equal(first.tets, again.tets)
     ws.mesh_shape(shape, 0.004, name="part")  # another size is another entry
     assert len(list(tmp_path.glob("part-*.npz"))) == 2
+
+
+def test_softrobots_finger_stl_is_filled_with_tetrahedra_that_step(reference_dir, monkeypatch, tmp_path):
+    """SoftRobots ships its robots as closed STL surfaces in millimetres: mesh_surface fills them
+    with tetrahedra whose volume is the volume the surface encloses and whose box is the file's,
+    in metres; finer sizes give more elements of the same volume; the result simulates."""
+    monkeypatch.setenv("WARPSOFT_MESH_CACHE", str(tmp_path))  # (and the cache keeps it)
+    coarse = ws.mesh_surface(reference_dir / "finger.stl", 0.006)
+    fine = ws.mesh_surface(reference_dir / "finger.stl", 0.003)
+    assert np.all(signed_volumes(coarse.nodes, coarse.tets) > 0)
+    assert np.allclose(np.ptp(coarse.nodes, axis=0), [0.10337, 0.015, 0.015], rtol=1e-3)  # 103.4 x 15 x 15 mm
+    assert fine.num_elements > 4 * coarse.num_elements
+    assert fine.volume == pytest.approx(coarse.volume, rel=0.01) and coarse.volume == pytest.approx(1.8455e-5, rel=0.01)
+    assert ws.mesh_surface(reference_dir / "finger.stl", 0.006).num_elements == coarse.num_elements  # from the cache
+    scene = ws.Scene("finger", dt=0.01)
+    body = scene.add_body("finger", coarse, ws.Material(5e5, 0.45, 1000.0))
+    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))  # its base, at x = 0
+    sim = ws.Simulator(scene, solver="direct")
+    for _ in range(3):
+        sim.step()
+    assert np.all(np.isfinite(sim.positions())) and sim.positions()[:, 2].min() < coarse.nodes[:, 2].min()  # sags
+
+
+def test_a_mesh_size_too_small_is_refused_before_gmsh_runs(tmp_path, monkeypatch):
+    """A mesh_size that would make tens of millions of elements hung gmsh for minutes: the
+    estimate refuses it at once, and the limit can be raised."""
+    import time
+
+    monkeypatch.delenv("WARPSOFT_MESH_CACHE", raising=False)  # gmsh's path, not a cached mesh
+    t0 = time.perf_counter()
+    with pytest.raises(ws.MeshError, match=r"mesh 'tiny': mesh_size 0.0002 m would make about .* elements .* "
+                                           r"more than the limit"):
+        ws.mesh_shape(ws.Cylinder((0, 0, 0), (0, 0, 0.05), 0.01), 0.0002, name="tiny")
+    assert time.perf_counter() - t0 < 5.0
+    monkeypatch.setenv("WARPSOFT_MAX_ELEMENTS", "lots")
+    with pytest.raises(ws.SceneError, match="WARPSOFT_MAX_ELEMENTS must be a number, got 'lots'"):
+        ws.mesh_shape(ws.Cylinder((0, 0, 0), (0, 0, 0.05), 0.01), 0.005, name="tiny")
+    with pytest.raises(ws.MeshError, match="does not exist"):
+        ws.mesh_surface(tmp_path / "none.stl", 0.01)

@@ -48,6 +48,7 @@ from .scene import (  # noqa: E402
     box_grid,
     load_mesh,
     mesh_shape,
+    mesh_surface,
     regions,
     rotation_about,
     save_mesh,
@@ -63,5 +64,5 @@ __all__ = [
     "Ball", "Box", "Cone", "Control", "ConvergenceWarning", "Cylinder", "HalfSpace", "Material", "MeshError", "Model",
     "Plane", "Region", "Scene", "SceneError", "SimulationError", "Simulator", "Sphere", "State", "StepStats",
     "TetMesh", "UserCodeError", "WarpsoftError", "WorldStats", "box_grid", "finalize", "load_mesh", "mesh_shape",
-    "regions", "rotation_about", "save_mesh", "shapes", "waypoints",
+    "mesh_surface", "regions", "rotation_about", "save_mesh", "shapes", "waypoints",
 ]

@@ -123,6 +123,130 @@ class Boolean(Shape):
         return [d for d in out if d[0] == 3]
 
 
+MAX_ELEMENTS = 1_000_000  # estimated elements above which meshing refuses (a too small mesh_size hangs gmsh)
+REGULAR_TET = 1.0 / (6.0 * math.sqrt(2.0))  # volume of a regular tetrahedron of unit edge
+
+
+def max_elements() -> int:
+    """The element limit: ``MAX_ELEMENTS``, or the environment's ``WARPSOFT_MAX_ELEMENTS``."""
+    text = os.environ.get("WARPSOFT_MAX_ELEMENTS")
+    try:
+        return int(float(text)) if text else MAX_ELEMENTS
+    except ValueError:
+        raise SceneError(f"WARPSOFT_MAX_ELEMENTS must be a number, got {text!r}") from None
+
+
+def check_size(name: str, volume: float, mesh_size: float) -> None:
+    """Refuse, before gmsh starts, a mesh whose estimated element count (``volume`` over a
+    regular tetrahedron of edge ``mesh_size``, times 1.5) exceeds :func:`max_elements`."""
+    estimate = 1.5 * volume / (REGULAR_TET * mesh_size ** 3)
+    limit = max_elements()
+    if estimate > limit:
+        raise MeshError(f"mesh '{name}': mesh_size {mesh_size:g} m would make about {estimate:.2g} elements "
+                        f"(volume {volume:.3g} m^3), more than the limit of {limit:.2g}; use a larger mesh_size, "
+                        "or raise the limit with the environment variable WARPSOFT_MAX_ELEMENTS")
+
+
+def _cached(name: str, key: str, make) -> TetMesh:
+    """``make()``, or the mesh kept under ``WARPSOFT_MESH_CACHE`` for ``key``."""
+    cache = os.environ.get("WARPSOFT_MESH_CACHE")
+    if not cache:
+        return make()
+    path = Path(cache) / f"{name}-{hashlib.sha1(key.encode()).hexdigest()[:16]}.npz"
+    if path.is_file():
+        with np.load(path) as data:
+            return TetMesh(data["nodes"], data["tets"], name=name)
+    mesh = make()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, nodes=mesh.nodes, tets=mesh.tets)
+    return mesh
+
+
+def _gmsh_start(name: str):
+    import threading
+
+    import gmsh
+
+    # interruptible (Ctrl-C stops a long meshing) where gmsh may install its signal handler
+    gmsh.initialize(interruptible=threading.current_thread() is threading.main_thread())
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.option.setNumber("General.Verbosity", 1)
+    gmsh.model.add(name)
+    return gmsh
+
+
+def _gmsh_tets(gmsh, name: str, scale: float = 1.0) -> TetMesh:
+    """The tetrahedra of gmsh's current model (node coordinates times ``scale``)."""
+    tags, coords, _ = gmsh.model.mesh.getNodes()
+    etypes, _, enodes = gmsh.model.mesh.getElements(3)
+    tets = [n for t, n in zip(etypes, enodes, strict=True) if t == 4]
+    if not tets:
+        raise MeshError(f"mesh '{name}': gmsh produced no tetrahedra (mesh_size too large?)")
+    index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
+    index[tags.astype(np.int64)] = np.arange(len(tags))
+    conn = index[np.concatenate(tets).astype(np.int64).reshape(-1, 4)]
+    return TetMesh.oriented(scale * coords.reshape(-1, 3), conn, name=name)
+
+
+def mesh_surface(path: str | Path, mesh_size: float, scale: float = 1e-3, name: str | None = None,
+                 feature_angle: float = 40.0) -> TetMesh:
+    """Fill a closed surface mesh file (STL, as SoftRobots ships its robots; any format gmsh
+    reads) with linear tetrahedra of edge about ``mesh_size`` (m).
+
+    ``scale``: metres per file unit (1e-3 for millimetres, SoftRobots' unit). ``feature_angle``
+    (degrees): surface edges sharper than this are kept as edges of the remeshed surface.
+    Meshes are cached as :func:`mesh_shape`'s are (``WARPSOFT_MESH_CACHE``), keyed by the file's
+    content and the settings.
+    """
+    path = Path(path)
+    name = name or path.stem
+    if not path.is_file():
+        raise MeshError(f"mesh_surface: file {str(path)!r} does not exist")
+    for key, v in (("mesh_size", mesh_size), ("scale", scale)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise SceneError(f"mesh '{name}': {key} must be a finite number > 0, got {v!r}")
+    digest = hashlib.sha1(path.read_bytes()).hexdigest()
+    return _cached(name, f"surface|{digest}|{float(mesh_size)!r}|{float(scale)!r}|{feature_angle!r}",
+                   lambda: _gmsh_fill(path, float(mesh_size), float(scale), name, float(feature_angle)))
+
+
+def _gmsh_fill(path: Path, mesh_size: float, scale: float, name: str, feature_angle: float) -> TetMesh:
+    gmsh = _gmsh_start(name)
+    try:
+        try:
+            gmsh.merge(str(path))
+        except Exception as exc:
+            raise MeshError(f"mesh '{name}': gmsh cannot read {str(path)!r}: {exc}") from None
+        tags, coords, _ = gmsh.model.mesh.getNodes()
+        etypes, _, enodes = gmsh.model.mesh.getElements(2)
+        tris = [n for t, n in zip(etypes, enodes, strict=True) if t == 2]
+        if not tris or not len(tags):
+            raise MeshError(f"mesh '{name}': {str(path)!r} holds no triangles")
+        index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
+        index[tags.astype(np.int64)] = np.arange(len(tags))
+        x = scale * coords.reshape(-1, 3)[index[np.concatenate(tris).astype(np.int64).reshape(-1, 3)]]
+        volume = abs(float(np.einsum("ij,ij->i", x[:, 0], np.cross(x[:, 1], x[:, 2])).sum()) / 6.0)
+        if volume <= 0.0:
+            raise MeshError(f"mesh '{name}': the surface in {str(path)!r} encloses no volume (not closed?)")
+        check_size(name, volume, mesh_size)
+        gmsh.model.mesh.classifySurfaces(math.radians(feature_angle), True, True, math.pi)
+        gmsh.model.mesh.createGeometry()
+        loop = gmsh.model.geo.addSurfaceLoop([e[1] for e in gmsh.model.getEntities(2)])
+        gmsh.model.geo.addVolume([loop])
+        gmsh.model.geo.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5 * mesh_size / scale)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", mesh_size / scale)
+        gmsh.option.setNumber("Mesh.Optimize", 1)
+        gmsh.model.mesh.generate(3)
+        return _gmsh_tets(gmsh, name, scale)
+    except MeshError:
+        raise
+    except Exception as exc:
+        raise MeshError(f"mesh '{name}': gmsh failed to fill {str(path)!r}: {exc}") from None
+    finally:
+        gmsh.finalize()
+
+
 def mesh_shape(shape: Shape, mesh_size: float, name: str = "shape", optimize: bool = True,
                curvature: int = 12) -> TetMesh:
     """Mesh a shape with linear tetrahedra of characteristic edge length ``mesh_size`` (m).
@@ -138,49 +262,27 @@ def mesh_shape(shape: Shape, mesh_size: float, name: str = "shape", optimize: bo
         raise SceneError(f"mesh_shape: expected a Shape, got {type(shape).__name__}")
     if not (isinstance(mesh_size, (int, float)) and math.isfinite(mesh_size) and mesh_size > 0):
         raise SceneError(f"mesh '{name}': mesh_size must be a finite number > 0 m, got {mesh_size!r}")
-    cache = os.environ.get("WARPSOFT_MESH_CACHE")
-    if cache:
-        key = hashlib.sha1(f"{shape!r}|{float(mesh_size)!r}|{optimize}|{curvature}".encode()).hexdigest()[:16]
-        path = Path(cache) / f"{name}-{key}.npz"
-        if path.is_file():
-            with np.load(path) as data:
-                return TetMesh(data["nodes"], data["tets"], name=name)
-        mesh = _gmsh_mesh(shape, float(mesh_size), name, optimize, curvature)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(path, nodes=mesh.nodes, tets=mesh.tets)
-        return mesh
-    return _gmsh_mesh(shape, float(mesh_size), name, optimize, curvature)
+    return _cached(name, f"{shape!r}|{float(mesh_size)!r}|{optimize}|{curvature}",
+                   lambda: _gmsh_mesh(shape, float(mesh_size), name, optimize, curvature))
 
 
 def _gmsh_mesh(shape: Shape, mesh_size: float, name: str, optimize: bool, curvature: int) -> TetMesh:
-    import gmsh
-
-    gmsh.initialize(interruptible=False)
+    gmsh = _gmsh_start(name)
     try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.option.setNumber("General.Verbosity", 1)
-        gmsh.model.add(name)
         vols = shape._add(gmsh.model.occ)
         gmsh.model.occ.synchronize()
         if not vols:
             raise MeshError(f"mesh '{name}': the shape has no volume (an empty boolean result?)")
+        check_size(name, sum(gmsh.model.occ.getMass(3, v) for _, v in gmsh.model.getEntities(3)), mesh_size)
         gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5 * mesh_size)
         gmsh.option.setNumber("Mesh.MeshSizeMax", mesh_size)
         gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", int(curvature))
         gmsh.option.setNumber("Mesh.Optimize", 1 if optimize else 0)
         gmsh.model.mesh.generate(3)
-        tags, coords, _ = gmsh.model.mesh.getNodes()
-        etypes, _, enodes = gmsh.model.mesh.getElements(3)
+        return _gmsh_tets(gmsh, name)
     except MeshError:
         raise
     except Exception as exc:
         raise MeshError(f"mesh '{name}': gmsh failed: {exc}") from None
     finally:
         gmsh.finalize()
-    tets = [n for t, n in zip(etypes, enodes, strict=True) if t == 4]
-    if not tets:
-        raise MeshError(f"mesh '{name}': gmsh produced no tetrahedra (mesh_size {mesh_size} too large?)")
-    index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
-    index[tags.astype(np.int64)] = np.arange(len(tags))
-    conn = index[np.concatenate(tets).astype(np.int64).reshape(-1, 4)]
-    return TetMesh.oriented(coords.reshape(-1, 3), conn, name=name)
