@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -162,17 +163,27 @@ def _cached(name: str, key: str, make) -> TetMesh:
     return mesh
 
 
-def _gmsh_start(name: str):
+@contextmanager
+def _gmsh(name: str, failure: str):
+    """A gmsh session on a new model ``name``; gmsh's own errors become MeshErrors that say
+    ``failure`` (Ctrl-C, a KeyboardInterrupt, goes through: gmsh is interruptible in the main
+    thread, where it may install its signal handler)."""
     import threading
 
     import gmsh
 
-    # interruptible (Ctrl-C stops a long meshing) where gmsh may install its signal handler
     gmsh.initialize(interruptible=threading.current_thread() is threading.main_thread())
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.option.setNumber("General.Verbosity", 1)
-    gmsh.model.add(name)
-    return gmsh
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.Verbosity", 1)
+        gmsh.model.add(name)
+        yield gmsh
+    except MeshError:
+        raise
+    except Exception as exc:
+        raise MeshError(f"mesh '{name}': {failure}: {exc}") from None
+    finally:
+        gmsh.finalize()
 
 
 def _gmsh_tets(gmsh, name: str, scale: float = 1.0) -> TetMesh:
@@ -211,8 +222,7 @@ def mesh_surface(path: str | Path, mesh_size: float, scale: float = 1e-3, name: 
 
 
 def _gmsh_fill(path: Path, mesh_size: float, scale: float, name: str, feature_angle: float) -> TetMesh:
-    gmsh = _gmsh_start(name)
-    try:
+    with _gmsh(name, f"gmsh failed to fill {str(path)!r}") as gmsh:
         try:
             gmsh.merge(str(path))
         except Exception as exc:
@@ -239,12 +249,6 @@ def _gmsh_fill(path: Path, mesh_size: float, scale: float, name: str, feature_an
         gmsh.option.setNumber("Mesh.Optimize", 1)
         gmsh.model.mesh.generate(3)
         return _gmsh_tets(gmsh, name, scale)
-    except MeshError:
-        raise
-    except Exception as exc:
-        raise MeshError(f"mesh '{name}': gmsh failed to fill {str(path)!r}: {exc}") from None
-    finally:
-        gmsh.finalize()
 
 
 def mesh_shape(shape: Shape, mesh_size: float, name: str = "shape", optimize: bool = True,
@@ -267,8 +271,7 @@ def mesh_shape(shape: Shape, mesh_size: float, name: str = "shape", optimize: bo
 
 
 def _gmsh_mesh(shape: Shape, mesh_size: float, name: str, optimize: bool, curvature: int) -> TetMesh:
-    gmsh = _gmsh_start(name)
-    try:
+    with _gmsh(name, "gmsh failed") as gmsh:
         vols = shape._add(gmsh.model.occ)
         gmsh.model.occ.synchronize()
         if not vols:
@@ -280,9 +283,3 @@ def _gmsh_mesh(shape: Shape, mesh_size: float, name: str, optimize: bool, curvat
         gmsh.option.setNumber("Mesh.Optimize", 1 if optimize else 0)
         gmsh.model.mesh.generate(3)
         return _gmsh_tets(gmsh, name)
-    except MeshError:
-        raise
-    except Exception as exc:
-        raise MeshError(f"mesh '{name}': gmsh failed: {exc}") from None
-    finally:
-        gmsh.finalize()
