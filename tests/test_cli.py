@@ -207,3 +207,27 @@ def test_no_cuda_driver_warning_on_a_machine_without_one():
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and out.stdout.strip() == "cpu"
     assert "CUDA driver" not in out.stderr
+
+
+def test_plot_draws_the_figures_of_a_report(tmp_path, capsys):
+    """`warpsoft plot`: effectors against targets, actuators, timings, as PNG files; a report
+    without actuators gets the figures it has data for; a file that is not a report is a clear
+    error."""
+    rep = tmp_path / "diamond.json"
+    assert main(["run", str(ROOT / "scenes/diamond.py"), "--steps", "3", "--param", "mode='inverse'",
+                 "--param", "mesh_size=0.02", "--report", str(rep), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["plot", str(rep), "--out", str(tmp_path / "fig")]) == 0
+    paths = capsys.readouterr().out.split()
+    assert [p.rsplit("-", 1)[-1] for p in paths] == ["effectors.png", "actuators.png", "timings.png"]
+    for p in paths:
+        assert open(p, "rb").read(8) == b"\x89PNG\r\n\x1a\n"
+    beam = tmp_path / "beam.json"
+    assert main(["run", CANTILEVER, "--steps", "2", "--param", "mesh_size=0.005", "--report", str(beam),
+                 "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["plot", str(beam)]) == 0
+    assert [p.rsplit("-", 1)[-1] for p in capsys.readouterr().out.split()] == ["effectors.png", "timings.png"]
+    (tmp_path / "other.json").write_text("{}")
+    assert main(["plot", str(tmp_path / "other.json")]) == 2
+    assert "is not a warpsoft run report" in capsys.readouterr().err

@@ -1,5 +1,5 @@
 """Command line: ``warpsoft run SCENE.py [--steps N] [--device cpu|cuda] [--usd OUT] [--report OUT.json]
-[--param key=value ...]``, ``warpsoft params SCENE.py``, ``warpsoft --version``."""
+[--param key=value ...]``, ``warpsoft params SCENE.py``, ``warpsoft plot REPORT.json``, ``warpsoft --version``."""
 
 from __future__ import annotations
 
@@ -17,6 +17,9 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     ps = sub.add_parser("params", help="list a scene file's parameters, their defaults and its documentation")
     ps.add_argument("scene", help="path of the scene file")
+    pl = sub.add_parser("plot", help="PNG figures of a run report: effectors and targets, actuators, timings")
+    pl.add_argument("report", help="a JSON report written by warpsoft run --report")
+    pl.add_argument("--out", default=None, help="folder of the figures (default: the report's)")
     r = sub.add_parser("run", help="run a scene file (a Python file defining build(**params) -> Scene)")
     r.add_argument("scene", help="path of the scene file")
     r.add_argument("--steps", type=int, default=None, help="number of steps (default: the scene's)")
@@ -60,6 +63,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "params":
             print(scene_params(args.scene))
+            return 0
+        if args.command == "plot":
+            from .plot import plot_report
+
+            for path in plot_report(args.report, args.out):
+                print(path)
             return 0
         params = parse_params(args.param)
         scene = build_scene(args.scene, params)
