@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 
 from warpsoft.io.cli import main
@@ -86,6 +87,26 @@ def test_report_and_usd_carry_actuators_and_effectors(tmp_path):
     assert curve.GetPointsAttr().GetTimeSamples() == [0.0, 1.0, 2.0, 3.0]
     assert len(curve.GetPointsAttr().Get(3.0)) == 11  # the pull point and ten path points
     assert stage.GetPrimAtPath("/World/effectors/fingertip").IsValid()
+    for group in ("cables", "effectors", "probes"):  # typed group prims
+        assert stage.GetPrimAtPath(f"/World/{group}").GetTypeName() == "Scope", group
+
+
+def test_usd_draws_the_cavity_walls_moving_with_the_body(tmp_path):
+    """The pneunet's cavity: its walls as a mesh (the body's nodes on them), time-sampled, and
+    grown under pressure."""
+    from pxr import Usd, UsdGeom
+
+    usd = tmp_path / "pneunet.usda"
+    assert main(["run", str(ROOT / "scenes/pneunet.py"), "--steps", "3", "--usd", str(usd),
+                 "--param", "mesh_size=0.006", "--param", "ramp_time=0.04", "--quiet"]) == 0
+    stage = Usd.Stage.Open(str(usd))
+    assert stage.GetPrimAtPath("/World/cavities").GetTypeName() == "Scope"
+    meshes = [p for p in stage.GetPrimAtPath("/World/cavities").GetChildren() if p.GetTypeName() == "Mesh"]
+    assert len(meshes) == 1
+    points = UsdGeom.Mesh(meshes[0]).GetPointsAttr()
+    assert points.GetTimeSamples() == [0.0, 1.0, 2.0, 3.0]
+    p0, p3 = np.array(points.Get(0.0)), np.array(points.Get(3.0))
+    assert len(p0) > 10 and np.abs(p3 - p0).max() > 1e-5  # the walls moved
 
 
 # ---- outputs checked first, how a run ended, user code, interruption (issue: never lose a result) ----

@@ -1,4 +1,5 @@
-"""USD export: one stage per run, time-sampled body surfaces and probe spheres."""
+"""USD export: one stage per run, time-sampled body surfaces, cavity walls, cables, probe,
+effector and target spheres (each kind under a typed Scope)."""
 
 from __future__ import annotations
 
@@ -55,6 +56,21 @@ class UsdWriter:
             self.probes[name] = sphere.AddTranslateOp()
         self.cables, self.effectors, self.targets = {}, {}, {}
         self._marker = 0.02 * size
+        self.cavities = []  # (UsdGeom.Mesh, global node ids): the cavities' walls, seen through the body
+        for w, scene in enumerate(model.scenes):
+            for cavity in scene.cavities:
+                if not self.cavities:
+                    UsdGeom.Scope.Define(self.stage, "/World/cavities")
+                tris = cavity.surface() + model.body_info(cavity.body.name, w).node_start
+                ids, local = np.unique(tris, return_inverse=True)
+                mesh = UsdGeom.Mesh.Define(self.stage, f"/World/cavities/{_name(cavity.name)}")
+                mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+                mesh.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(tris)))
+                mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(local.astype(int).ravel().tolist()))
+                mesh.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.2, 0.5, 0.95)]))
+                mesh.CreateDisplayOpacityAttr(Vt.FloatArray([0.5]))
+                mesh.CreateDoubleSidedAttr(True)
+                self.cavities.append((mesh, ids))
         self.frames = 0
         _ = Sdf  # imported for its side effect of loading the USD file formats
 
@@ -65,12 +81,18 @@ class UsdWriter:
         sphere.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(*color)]))
         return sphere.AddTranslateOp()
 
+    def _group(self, path: str) -> None:
+        """A typed group prim (Scope) for a kind of row, made once."""
+        if not self.stage.GetPrimAtPath(path):
+            self._UsdGeom.Scope.Define(self.stage, path)
+
     def write_rows(self, frame: int, geometry: dict) -> None:
         """Cables as linear curves through their path, effectors (green) and targets (red)
         as spheres, at time code ``frame`` (``geometry`` from ``Simulator.constraint_geometry``)."""
         Gf, Vt, UsdGeom = self._Gf, self._Vt, self._UsdGeom
         for name, path in geometry["cables"].items():
             if name not in self.cables:
+                self._group("/World/cables")
                 curve = UsdGeom.BasisCurves.Define(self.stage, f"/World/cables/{_name(name)}")
                 curve.CreateTypeAttr(UsdGeom.Tokens.linear)
                 curve.CreateCurveVertexCountsAttr(Vt.IntArray([len(path)]))
@@ -82,6 +104,7 @@ class UsdWriter:
                                     ("targets", self.targets, (0.9, 0.1, 0.1))):
             for name, p in geometry[group].items():
                 if name not in store:
+                    self._group(f"/World/{group}")
                     store[name] = self._sphere(f"/World/{group}/{_name(name)}", color)
                 store[name].Set(Gf.Vec3d(*np.asarray(p, dtype=float).tolist()), frame)
 
@@ -95,6 +118,8 @@ class UsdWriter:
             mesh.GetExtentAttr().Set(Vt.Vec3fArray([Gf.Vec3f(*lo.tolist()), Gf.Vec3f(*hi.tolist())]), frame)
         for name, op in self.probes.items():
             op.Set(Gf.Vec3d(*np.asarray(probes[name], dtype=float).tolist()), frame)
+        for mesh, ids in self.cavities:
+            mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(q[ids].astype(np.float32)), frame)
         self.frames = max(self.frames, frame + 1)
 
     def save(self) -> Path:
