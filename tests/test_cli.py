@@ -252,3 +252,10 @@ def test_plot_draws_the_figures_of_a_report(tmp_path, capsys):
     (tmp_path / "other.json").write_text("{}")
     assert main(["plot", str(tmp_path / "other.json")]) == 2
     assert "is not a warpsoft run report" in capsys.readouterr().err
+
+
+def test_a_run_says_what_it_does_before_the_first_step(capsys):
+    """Meshing and the first step (kernel compilation) can take long: the CLI says so first."""
+    assert main(["run", CANTILEVER, "--steps", "1", "--param", "mesh_size=0.005"]) == 0
+    err = capsys.readouterr().err
+    assert "building" in err and "scene 'cantilever' built in" in err and "compiles the kernels" in err

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from ..errors import WarpsoftError
 
@@ -71,7 +72,13 @@ def main(argv: list[str] | None = None) -> int:
                 print(path)
             return 0
         params = parse_params(args.param)
+        started = time.perf_counter()
+        if not args.quiet:  # meshing may take a while: say what is going on
+            print(f"warpsoft: building {args.scene} (meshing, or the mesh cache)...", file=sys.stderr, flush=True)
         scene = build_scene(args.scene, params)
+        if not args.quiet:
+            print(f"warpsoft: scene '{scene.name}' built in {time.perf_counter() - started:.1f} s", file=sys.stderr,
+                  flush=True)
         rep = run(scene, steps=args.steps, device=args.device, usd=args.usd, report=args.report,
                   solver=args.solver, tolerance=args.tolerance, progress=not args.quiet, scene_file=args.scene,
                   flush_every=args.flush_every)

@@ -179,6 +179,9 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
     if progress:
         from tqdm import tqdm
 
+        m = sim.model
+        print(f"warpsoft: model of {m.num_nodes} nodes and {m.num_elements} elements on {m.device}; the first step "
+              "compiles the kernels (once per machine: they are cached)...", file=sys.stderr, flush=True)
         iterator = tqdm(iterator, desc=scene.name, unit="step", disable=None)
     with stop_on_signals():
         try:
