@@ -150,7 +150,7 @@ class Simulator:
             after["delta"], after["points"] = self.rows.delta, self.rows.points
             if self.rows.num_actuators:
                 gs = self.gauss_seidel
-                after |= {"lam": gs.lam, "resolve": gs.result}
+                after |= {"lam": gs.lam, "resolve": gs.result, "W": self.rows.W, "delta_free": self.rows.delta_free}
                 if self.device_inverse is not None:
                     after["qp"] = self.device_inverse.result
                 self.before_qp = Readback({"W": self.rows.W, "delta_free": self.rows.delta_free,

@@ -21,7 +21,8 @@ class WorldStats:
     its active-set iterations as ``resolve_iterations``), and its rows after the step by name:
     actuator ``delta`` (cable m, cavity m^3) and ``lambda`` (N, Pa), effector positions and
     targets (m) and the distance between them on the controlled axes (m); its elements turned
-    inside out after the step (``det F <= 0``) and, in the direct model, how far each
+    inside out after the step (``det F <= 0``); ``linearization_error`` (m, m^3), how far its
+    rows ended from the step's linear prediction ``delta_free + W lambda``; in the direct model, how far each
     displacement-driven actuator is from its command this step (cable m, cavity m^3)."""
 
     cg_iterations: int = 0
@@ -30,6 +31,7 @@ class WorldStats:
     qp_status: str = ""
     qp_seconds: float = 0.0
     inverted_elements: int = 0
+    linearization_error: float = 0.0
     actuator_residual: dict[str, float] = field(default_factory=dict)
     effector_error: dict[str, float] = field(default_factory=dict)
     actuator_delta: dict[str, float] = field(default_factory=dict)
@@ -84,4 +86,5 @@ class StepStats:
     effectors = _of_the_world("effectors")
     targets = _of_the_world("targets")
     inverted_elements = _of_the_world("inverted_elements")
+    linearization_error = _of_the_world("linearization_error")
     actuator_residual = _of_the_world("actuator_residual")

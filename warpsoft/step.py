@@ -314,6 +314,8 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
         ws.targets = rows.targets(targets, w)
         ws.effector_error = {e.name: float(np.linalg.norm((ws.effectors[e.name] - ws.targets[e.name])[e.axis_ids]))
                              for e in rows.effectors[w] if e.target is not None}
+        if acts:
+            watch.linearization(sim, stats, w, host)
         if acts and sim.model.scenes[w].inverse:
             watch.out_of_reach(sim, stats, w, delta[a], lam[a])
         elif acts:

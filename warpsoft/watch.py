@@ -61,6 +61,27 @@ def inverted_elements(sim: Simulator, stats: StepStats, host: dict[str, np.ndarr
                                   "large; the corotational model keeps going, but the result is not physical there")
 
 
+UNPREDICTED = 0.2  # rows ending this far (relative to the step's largest node motion) from the linear prediction
+
+
+def linearization(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarray]) -> None:
+    """How far the world's rows ended from the step's linear prediction ``delta_free + W lambda``
+    (the step solves the linearized problem; near a buckling point, or with a step too large, the
+    body no longer moves as predicted). A warning when the gap exceeds ``UNPREDICTED`` times the
+    step's largest node motion."""
+    rows, ws = sim.rows, stats.worlds[w]
+    s, e = rows.world_row_start[w], rows.world_row_start[w + 1]
+    na = int(rows.world_actuators[w])
+    predicted = host["delta_free"][s:e] + host["W"][s:e, :na] @ host["lam"][s:s + na]
+    ws.linearization_error = gap = float(np.abs(host["delta"][s:e] - predicted).max()) if e > s else 0.0
+    motion = float(np.sqrt(host["health_step"][0]))
+    if begins(sim, ("unpredicted", w), gap > UNPREDICTED * motion and gap > 1e-9 * sim.size):
+        stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: the rows ended {gap:.3g} away from the "
+                              f"step's linear prediction, for nodes that moved up to {motion:.3g} m: the "
+                              "linearization no longer predicts the motion (near a buckling point, or a step too "
+                              "large); smaller steps (dt, max_step) follow it better")
+
+
 MISSED_COMMAND = 0.05  # relative miss of a displacement command, past which a direct-model actuator warns
 
 

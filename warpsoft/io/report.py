@@ -76,7 +76,8 @@ class RunReport:
                "W": self.W, "W_units": "cable m/N, cavity m^3/Pa (rows and columns in actuator order)",
                "compliance_iterations": [s.compliance_iterations for s in self.steps],
                "resolve_iterations": [s.resolve_iterations for s in self.steps],
-               "resolve_residuals": [s.resolve_residual for s in self.steps]}
+               "resolve_residuals": [s.resolve_residual for s in self.steps],
+               "linearization_error": [s.linearization_error for s in self.steps]}
         targeted = [e.name for e in effs if e.target is not None]
         if targeted:
             out["targets"] = {name: [np.asarray(s.targets[name]).tolist() for s in self.steps] for name in targeted}
