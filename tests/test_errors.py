@@ -154,3 +154,19 @@ def test_a_finite_but_absurd_load_is_rejected_and_the_state_kept():
     with pytest.raises(ws.SimulationError, match=r"step 5 .* more than 10 times the model's size"):
         sim.step()
     assert np.array_equal(sim.positions(), before) and np.abs(before).max() < 1.0
+
+
+def test_a_shape_given_as_a_region_and_a_region_given_as_a_shape_say_which_is_which():
+    """ws.Box is a region while ws.Cylinder and ws.Ball are shapes (the solid box is
+    ws.shapes.Box): mixing them up was a TypeError ('object is not callable')."""
+    scene = ws.Scene("s", static=True)
+    body = scene.add_body("beam", MESH, MAT)
+    with pytest.raises(ws.SceneError, match=r"fixed region must be a region .* got Cylinder: ws.Cylinder is a "
+                                            r"solid shape for meshing"):
+        scene.fix(body, ws.Cylinder((0, 0, 0), (0, 0, 0.01), 0.005))
+    with pytest.raises(ws.SceneError, match=r"load 'push': region must be a region .* got str"):
+        scene.add_force(body, "the tip", (0, 0, -1), name="push")
+    with pytest.raises(ws.SceneError, match=r"expected a Shape, got Box: ws.Box is a region .* ws.shapes.Box"):
+        ws.mesh_shape(ws.Box((0, 0, 0), (1, 1, 1)), 0.1)
+    with pytest.raises(ws.SceneError, match=r"got Box: ws.shapes.Box is a solid shape"):
+        scene.fix(body, ws.shapes.Box((0, 0, 0), (0.01, 0.01, 0.01)))

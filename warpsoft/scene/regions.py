@@ -125,3 +125,21 @@ class Sphere(Region):
 
     def __repr__(self):
         return f"Sphere(center={self.center.tolist()}, radius={self.radius})"
+
+
+def as_region(value, what: str) -> Region:
+    """``value`` if it is a region, else a clear error: regions select nodes by geometry, shapes
+    (``ws.shapes``) are solids to mesh, and their names overlap (``ws.Box`` is a region,
+    ``ws.shapes.Box`` a solid)."""
+    if isinstance(value, Region):
+        return value
+    from . import shapes
+
+    hint = ""
+    if isinstance(value, shapes.Shape):
+        qualified = "ws.shapes.Box" if isinstance(value, shapes.Box) else f"ws.{type(value).__name__}"
+        hint = (f": {qualified} is a solid shape for meshing (ws.mesh_shape), not a region; "
+                "regions are ws.Box, ws.Plane, ws.HalfSpace and ws.Sphere, combined with |, & and ~")
+    raise SceneError(f"{what} must be a region (ws.Box, ws.Plane, ws.HalfSpace, ws.Sphere, ...), got "
+                     f"{type(value).__name__}{hint}")
+

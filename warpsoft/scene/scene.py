@@ -18,7 +18,7 @@ from .cavity import Cavity
 from .effector import Effector
 from .material import Material
 from .mesh import TetMesh
-from .regions import Region
+from .regions import Region, as_region
 
 Vec3 = tuple[float, float, float]
 
@@ -57,6 +57,7 @@ class Body:
         """Give the elements whose centroid lies in ``region`` another material."""
         if not isinstance(material, Material):
             raise SceneError(f"body '{self.name}': set_material expects a Material, got {material!r}")
+        region = as_region(region, f"body '{self.name}': set_material's region")
         centroids = self.mesh.nodes[self.mesh.tets].mean(axis=1)
         if not np.any(region(centroids)):
             raise SceneError(f"body '{self.name}': set_material region {region!r} contains no element centroid")
@@ -163,6 +164,7 @@ class Scene:
     def fix(self, body: Body, region: Region, axes: str = "xyz") -> Fixture:
         """Hold the nodes of ``body`` in ``region`` along ``axes`` (any of "x", "y", "z")."""
         self._own(body, "fix")
+        region = as_region(region, f"body '{body.name}': fixed region")
         if not axes or any(a not in "xyz" for a in axes) or len(set(axes)) != len(axes):
             raise SceneError(f"body '{body.name}': fix axes must be a subset of 'xyz', got {axes!r}")
         if not np.any(region(body.mesh.nodes)):
@@ -175,6 +177,7 @@ class Scene:
         """Spread a total force (N) over the surface of ``body`` inside ``region``."""
         self._own(body, "add_force")
         name = name or f"load{len(self.loads)}"
+        region = as_region(region, f"load '{name}': region")
         if not callable(total):
             total = _vec3(total, f"load '{name}': total force")
         load = Load(name, body, region, total)
@@ -225,6 +228,8 @@ class Scene:
             raise SceneError(f"cavity '{name}': mode must be 'pressure' or 'volume', got {mode!r}")
         if (region is None) == (triangles is None):
             raise SceneError(f"cavity '{name}': give either a region or triangles")
+        if region is not None:
+            region = as_region(region, f"cavity '{name}': region")
         cavity = Cavity(name, modes[mode], value, min_pressure, max_pressure, min_volume_growth, max_volume_growth,
                         max_step, body=body, region=region, triangles=triangles, symmetry_planes=symmetry_planes)
         cavity.surface()  # validates now: closed and oriented

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import MeshError, SceneError
 from .mesh import TetMesh
+from .regions import Region
 
 
 def _check(name: str, **values) -> None:
@@ -263,7 +264,11 @@ def mesh_shape(shape: Shape, mesh_size: float, name: str = "shape", optimize: bo
     re-meshed: design sweeps skip gmsh, and machines without gmsh can run prepared scenes.
     """
     if not isinstance(shape, Shape):
-        raise SceneError(f"mesh_shape: expected a Shape, got {type(shape).__name__}")
+        hint = ""
+        if isinstance(shape, Region):
+            hint = (f": ws.{type(shape).__name__} is a region (it selects nodes); the solids are ws.shapes.Box, "
+                    "ws.Cylinder, ws.Cone and ws.Ball")
+        raise SceneError(f"mesh_shape: expected a Shape, got {type(shape).__name__}{hint}")
     if not (isinstance(mesh_size, (int, float)) and math.isfinite(mesh_size) and mesh_size > 0):
         raise SceneError(f"mesh '{name}': mesh_size must be a finite number > 0 m, got {mesh_size!r}")
     return _cached(name, f"{shape!r}|{float(mesh_size)!r}|{optimize}|{curvature}",
