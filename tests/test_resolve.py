@@ -80,9 +80,9 @@ def dense_qps(P, q, G, bounds, n):
 
     x = wp.zeros((len(P), n), dtype=wp.float64)
     status = wp.zeros(len(P), dtype=wp.int32)
-    wp.launch(inverse_qp.dense_qp, len(P), inputs=[wp.array(P, dtype=wp.float64), wp.array(q, dtype=wp.float64),
-                                                   wp.array(G, dtype=wp.float64), wp.array(bounds, dtype=wp.float64),
-                                                   n, 400], outputs=[x, status])
+    dense_qp = inverse_qp.qp_kernels(inverse_qp.size_for(n))[1]  # local matrices as large as n needs
+    arrays = [wp.array(a, dtype=wp.float64) for a in (P, q, G, bounds)]
+    wp.launch(dense_qp, len(P), inputs=[*arrays, n, 400], outputs=[x, status])
     return x.numpy(), status.numpy()
 
 

@@ -26,6 +26,8 @@ from .stats import ConvergenceWarning, StepStats, WorldStats
 
 __all__ = ["ConvergenceWarning", "Simulator", "StepStats", "WorldStats"]
 
+AUTO_DEVICE_QP = 4  # qp="auto" on CUDA: the device QP for worlds of up to this many actuators (measured faster)
+
 
 class Simulator:
     """Steps a scene, or every world of a model, on a device.
@@ -55,9 +57,11 @@ class Simulator:
             same tolerance, at the cost of 0-2 more iterations on the reference scenes) or "float64".
         qp: the inverse model's QP: "piqp" (on the host through qpsolvers, the reference) or
             "device" (an exact dual active-set method on the device, one thread per world, up
-            to 16 actuators: the inverse step stays one graph). "auto" is piqp: on the H200 the
-            device QP's one thread takes 0.3 ms for the Diamond's 4 actuators and 1 ms for the
-            Trunk's 8, against 0.3-0.5 ms for piqp and its round trip (docs/performance.md).
+            to 16 actuators: the inverse step stays one graph). "auto": the device QP on CUDA
+            when no world has more than ``AUTO_DEVICE_QP`` (4) actuators, piqp otherwise and on
+            the CPU. Measured on the H200: the device QP takes 87-127 us for 4 actuators (the
+            Diamond: steps 1.69 -> 1.38 ms) but 0.6 ms for the Trunk's 8, more than piqp and its
+            round trip (docs/performance.md).
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
@@ -114,9 +118,11 @@ class Simulator:
             self.gauss_seidel = GaussSeidel(self.rows)
             self.effector_weights = [np.concatenate([np.full(len(e.axes), e.weight) for e in effs]) if effs
                                      else np.zeros(0) for effs in self.rows.effectors]
-        self.device_inverse = None  # the inverse model's QP on the device, when asked for
-        if qp == "device" and self.rows is not None and any(s.inverse and self.rows.world_actuators[w]
-                                                            for w, s in enumerate(m.scenes)):
+        self.device_inverse = None  # the inverse model's QP on the device, when asked for or faster
+        inverse_worlds = [w for w, s in enumerate(m.scenes) if s.inverse and self.rows is not None
+                          and self.rows.world_actuators[w]]
+        small = bool(inverse_worlds) and max(self.rows.world_actuators[w] for w in inverse_worlds) <= AUTO_DEVICE_QP
+        if inverse_worlds and (qp == "device" or (qp == "auto" and d.is_cuda and small)):
             self.device_inverse = DeviceInverse(self.rows, m.scenes, self.effector_weights)
             if not self.device_inverse.usable:
                 raise SceneError(f"Simulator: qp='device' takes at most {NMAX} actuators per world, got "

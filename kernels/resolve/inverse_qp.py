@@ -20,11 +20,6 @@ import warp as wp
 
 from .gauss_seidel import HI, LO, bounds_this_step
 
-NMAX = 16  # actuators per world the device QP takes (more: the host QP)
-matn = wp.types.matrix(shape=(NMAX, NMAX), dtype=wp.float64)
-vecn = wp.types.vector(length=NMAX, dtype=wp.float64)
-veci = wp.types.vector(length=NMAX, dtype=wp.int32)
-
 OPTIMAL = wp.constant(0)  # result[w, STATUS]
 EMPTY_BOUNDS = wp.constant(1)  # some row has dmin > dmax or lo > hi (result[w, DETAIL]: its index)
 INFEASIBLE = wp.constant(2)  # the constraints cannot all hold
@@ -36,342 +31,365 @@ DETAIL = wp.constant(2)
 NUM_RESULTS = 3
 
 
-@wp.func
-def cholesky(M: matn, n: int) -> matn:
-    """Lower ``L`` with ``M = L L^T`` (``M`` symmetric positive definite, its first ``n`` rows)."""
-    L = matn()
-    for j in range(n):
-        s = M[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        d = wp.sqrt(wp.max(s, wp.float64(1e-300)))
-        L[j, j] = d
-        for i in range(j + 1, n):
-            t = M[i, j]
+NMAX = 16  # actuators per world the device QP takes (more: the host QP)
+SIZES = (4, 8, 16)  # the QP's local matrices come in these sizes: the smallest that holds a model's actuators
+_kernels = {}
+
+
+def size_for(actuators: int) -> int:
+    """The smallest local-matrix size that holds ``actuators`` (<= NMAX)."""
+    return next(s for s in SIZES if s >= actuators)
+
+
+def qp_kernels(size: int):
+    """``(inverse_qp, dense_qp)`` with local matrices of ``size`` x ``size`` (one of ``SIZES``):
+    a thread walks matrices as large as its problem needs, not NMAX's."""
+    if size in _kernels:
+        return _kernels[size]
+    matn = wp.types.matrix(shape=(size, size), dtype=wp.float64)
+    vecn = wp.types.vector(length=size, dtype=wp.float64)
+    veci = wp.types.vector(length=size, dtype=wp.int32)
+    NS = size
+
+    @wp.func
+    def cholesky(M: matn, n: int) -> matn:
+        """Lower ``L`` with ``M = L L^T`` (``M`` symmetric positive definite, its first ``n`` rows)."""
+        L = matn()
+        for j in range(n):
+            s = M[j, j]
             for k in range(j):
-                t -= L[i, k] * L[j, k]
-            L[i, j] = t / d
-    return L
+                s -= L[j, k] * L[j, k]
+            d = wp.sqrt(wp.max(s, wp.float64(1e-300)))
+            L[j, j] = d
+            for i in range(j + 1, n):
+                t = M[i, j]
+                for k in range(j):
+                    t -= L[i, k] * L[j, k]
+                L[i, j] = t / d
+        return L
 
 
-@wp.func
-def cholesky_solve(L: matn, b: vecn, n: int) -> vecn:
-    """``x`` with ``L L^T x = b``."""
-    y = vecn()
-    for i in range(n):
-        t = b[i]
-        for k in range(i):
-            t -= L[i, k] * y[k]
-        y[i] = t / L[i, i]
-    x = vecn()
-    for ii in range(n):
-        i = n - 1 - ii
-        t = y[i]
-        for k in range(i + 1, n):
-            t -= L[k, i] * x[k]
-        x[i] = t / L[i, i]
-    return x
-
-
-@wp.func
-def spectral_norm(S: matn, n: int) -> wp.float64:
-    """Largest ``|eigenvalue|`` of the symmetric ``S`` (cyclic Jacobi rotations)."""
-    A = S
-    for _sweep in range(30):
-        off = wp.float64(0.0)
-        total = wp.float64(0.0)
+    @wp.func
+    def cholesky_solve(L: matn, b: vecn, n: int) -> vecn:
+        """``x`` with ``L L^T x = b``."""
+        y = vecn()
         for i in range(n):
-            for j in range(n):
-                total += A[i, j] * A[i, j]
-                if i != j:
-                    off += A[i, j] * A[i, j]
-        if off <= wp.float64(1e-30) * total:
-            break
-        for p in range(n):
-            for q in range(p + 1, n):
-                if A[p, q] != wp.float64(0.0):
-                    theta = (A[q, q] - A[p, p]) / (wp.float64(2.0) * A[p, q])
-                    t = wp.sign(theta) / (wp.abs(theta) + wp.sqrt(theta * theta + wp.float64(1.0)))
-                    if theta == wp.float64(0.0):
-                        t = wp.float64(1.0)
-                    c = wp.float64(1.0) / wp.sqrt(t * t + wp.float64(1.0))
-                    s = t * c
-                    for k in range(n):  # A <- J^T A J, rows then columns p and q
-                        akp = A[k, p]
-                        akq = A[k, q]
-                        A[k, p] = c * akp - s * akq
-                        A[k, q] = s * akp + c * akq
-                    for k in range(n):
-                        apk = A[p, k]
-                        aqk = A[q, k]
-                        A[p, k] = c * apk - s * aqk
-                        A[q, k] = s * apk + c * aqk
-    largest = wp.float64(0.0)
-    for i in range(n):
-        largest = wp.max(largest, wp.abs(A[i, i]))
-    return largest
+            t = b[i]
+            for k in range(i):
+                t -= L[i, k] * y[k]
+            y[i] = t / L[i, i]
+        x = vecn()
+        for ii in range(n):
+            i = n - 1 - ii
+            t = y[i]
+            for k in range(i + 1, n):
+                t -= L[k, i] * x[k]
+            x[i] = t / L[i, i]
+        return x
 
 
-@wp.func
-def constraint_normal(i: int, G: matn, n: int) -> vecn:
-    k = i // 4
-    t = i % 4
-    v = vecn()
-    if t < 2:
-        v[k] = wp.float64(1.0)
-    else:
-        for j in range(n):
-            v[j] = G[k, j]
-    if t % 2 == 1:
-        v = -v
-    return v
-
-
-@wp.func
-def constraint_bound(i: int, lo: vecn, hi: vecn, gl: vecn, gu: vecn) -> wp.float64:
-    k = i // 4
-    t = i % 4
-    b = lo[k]
-    if t == 1:
-        b = -hi[k]
-    elif t == 2:
-        b = gl[k]
-    elif t == 3:
-        b = -gu[k]
-    return b
-
-
-@wp.func
-def matvec(B: matn, v: vecn, n: int) -> vecn:
-    out = vecn()
-    for i in range(n):
-        s = wp.float64(0.0)
-        for j in range(n):
-            s += B[i, j] * v[j]
-        out[i] = s
-    return out
-
-
-@wp.func
-def dot_n(a: vecn, b: vecn, n: int) -> wp.float64:
-    s = wp.float64(0.0)
-    for i in range(n):
-        s += a[i] * b[i]
-    return s
-
-
-@wp.func
-def dual_active_set(P: matn, q: vecn, G: matn, lo: vecn, hi: vecn, gl: vecn, gu: vecn, n: int, max_iterations: int):
-    """Goldfarb-Idnani on ``min 1/2 x^T P x + q^T x`` under the one-sided constraints (see the
-    module doc); returns ``(x, status, iterations)``."""
-    Lp = cholesky(P, n)
-    B = matn()  # P^-1
-    for j in range(n):
-        e = vecn()
-        e[j] = wp.float64(1.0)
-        col = cholesky_solve(Lp, e, n)
-        for i in range(n):
-            B[i, j] = col[i]
-    x = -matvec(B, q, n)
-    act = veci()
-    u = vecn()
-    na = wp.int32(0)  # wp.int32, not int(): dynamic variables (ruff would fold int(0) to 0)
-    p = wp.int32(-1)
-    up = wp.float64(0.0)
-    status = wp.int32(ITERATION_CAP)
-    its = wp.int32(0)
-    for it in range(max_iterations):
-        its = it + 1
-        if p < 0:  # the most violated constraint (per unit normal: the units of x)
-            xmax = wp.float64(0.0)
+    @wp.func
+    def spectral_norm(S: matn, n: int) -> wp.float64:
+        """Largest ``|eigenvalue|`` of the symmetric ``S`` (cyclic Jacobi rotations)."""
+        A = S
+        for _sweep in range(30):
+            off = wp.float64(0.0)
+            total = wp.float64(0.0)
             for i in range(n):
-                xmax = wp.max(xmax, wp.abs(x[i]))
-            worst = -wp.float64(1e-10) * (wp.float64(1.0) + xmax)
-            for i in range(4 * n):
-                b = constraint_bound(i, lo, hi, gl, gu)
-                active = wp.int32(0)
-                for a in range(na):
-                    if act[a] == i:
-                        active = wp.int32(1)
-                if wp.isfinite(b) and active == 0:
-                    ni = constraint_normal(i, G, n)
-                    norm = wp.sqrt(dot_n(ni, ni, n))
-                    if norm > wp.float64(0.0):
-                        s = (dot_n(ni, x, n) - b) / norm
-                        if s < worst:
-                            worst = s
-                            p = i
-            if p < 0:
-                status = wp.int32(OPTIMAL)
+                for j in range(n):
+                    total += A[i, j] * A[i, j]
+                    if i != j:
+                        off += A[i, j] * A[i, j]
+            if off <= wp.float64(1e-30) * total:
                 break
-            up = wp.float64(0.0)
-        n_p = constraint_normal(p, G, n)
-        Bn = matvec(B, n_p, n)
-        z = Bn
-        r = vecn()
-        if na > 0:  # r = (N^T B N)^-1 N^T B n_p, z = B n_p - B N r
-            BN = matn()
-            M = matn()
-            rhs = vecn()
-            for a in range(na):
-                na_vec = constraint_normal(act[a], G, n)
-                col = matvec(B, na_vec, n)
-                for i in range(n):
-                    BN[i, a] = col[i]
-                rhs[a] = dot_n(na_vec, Bn, n)
-            for a in range(na):
-                na_vec = constraint_normal(act[a], G, n)
-                for c in range(na):
-                    s = wp.float64(0.0)
-                    for i in range(n):
-                        s += na_vec[i] * BN[i, c]
-                    M[a, c] = s
-            r = cholesky_solve(cholesky(M, na), rhs, na)
-            for i in range(n):
-                s = wp.float64(0.0)
-                for a in range(na):
-                    s += BN[i, a] * r[a]
-                z[i] = Bn[i] - s
-        zn = dot_n(z, n_p, n)
-        t2 = wp.float64(wp.inf)
-        if zn > wp.float64(1e-12) * dot_n(n_p, Bn, n):
-            t2 = -(dot_n(n_p, x, n) - constraint_bound(p, lo, hi, gl, gu)) / zn
-        t1 = wp.float64(wp.inf)
-        k = wp.int32(-1)
-        for a in range(na):
-            if r[a] > wp.float64(1e-12):
-                ratio = u[a] / r[a]
-                if ratio < t1:
-                    t1 = ratio
-                    k = a
-        if not wp.isfinite(t1) and not wp.isfinite(t2):
-            status = wp.int32(INFEASIBLE)
-            break
-        t = wp.min(t1, t2)
-        if wp.isfinite(t2):
-            x = x + t * z
-        for a in range(na):
-            u[a] = u[a] - t * r[a]
-        up += t
-        if t2 <= t1:  # the constraint is met: it joins the active set
-            act[na] = p
-            u[na] = up
-            na += 1
-            p = -1
-        else:  # a multiplier reached zero: that constraint leaves, p is tried again
-            for a in range(k, na - 1):
-                act[a] = act[a + 1]
-                u[a] = u[a + 1]
-            na -= 1
-    return x, status, its
+            for p in range(n):
+                for q in range(p + 1, n):
+                    if A[p, q] != wp.float64(0.0):
+                        theta = (A[q, q] - A[p, p]) / (wp.float64(2.0) * A[p, q])
+                        t = wp.sign(theta) / (wp.abs(theta) + wp.sqrt(theta * theta + wp.float64(1.0)))
+                        if theta == wp.float64(0.0):
+                            t = wp.float64(1.0)
+                        c = wp.float64(1.0) / wp.sqrt(t * t + wp.float64(1.0))
+                        s = t * c
+                        for k in range(n):  # A <- J^T A J, rows then columns p and q
+                            akp = A[k, p]
+                            akq = A[k, q]
+                            A[k, p] = c * akp - s * akq
+                            A[k, q] = s * akp + c * akq
+                        for k in range(n):
+                            apk = A[p, k]
+                            aqk = A[q, k]
+                            A[p, k] = c * apk - s * aqk
+                            A[q, k] = s * apk + c * aqk
+        largest = wp.float64(0.0)
+        for i in range(n):
+            largest = wp.max(largest, wp.abs(A[i, i]))
+        return largest
 
 
-@wp.func
-def clamp(v: wp.float64, lo: wp.float64, hi: wp.float64) -> wp.float64:
-    return wp.min(wp.max(v, lo), hi)
+    @wp.func
+    def constraint_normal(i: int, G: matn, n: int) -> vecn:
+        k = i // 4
+        t = i % 4
+        v = vecn()
+        if t < 2:
+            v[k] = wp.float64(1.0)
+        else:
+            for j in range(n):
+                v[j] = G[k, j]
+        if t % 2 == 1:
+            v = -v
+        return v
 
 
-@wp.kernel
-def inverse_qp(
-    W: wp.array2d(dtype=wp.float64),
-    delta_free: wp.array(dtype=wp.float64),
-    delta_now: wp.array(dtype=wp.float64),
-    inputs: wp.array2d(dtype=wp.float64),
-    world_row_start: wp.array(dtype=wp.int32),
-    world_actuators: wp.array(dtype=wp.int32),
-    effector_start: wp.array(dtype=wp.int32),
-    effector_count: wp.array(dtype=wp.int32),
-    row_weight: wp.array(dtype=wp.float64),
-    epsilon: wp.array(dtype=wp.float64),
-    max_iterations: int,
-    lam: wp.array(dtype=wp.float64),
-    result: wp.array2d(dtype=wp.float64),
-):
-    """``lam`` of the actuator rows of every world with ``epsilon[w] >= 0`` (an inverse world;
-    ``lam`` holds the previous actuation, kept, clipped to the force bounds, when the QP fails)."""
-    w = wp.tid()
-    s = world_row_start[w]
-    n = world_actuators[w]
-    result[w, STATUS] = wp.float64(NOT_SOLVED)
-    result[w, ITERATIONS] = wp.float64(0.0)
-    result[w, DETAIL] = wp.float64(-1.0)
-    if epsilon[w] < wp.float64(0.0) or n == 0 or n > NMAX:
-        return
-    e0 = effector_start[w]
-    ne = effector_count[w]
-    Wsym = matn()
-    task = matn()
-    q = vecn()
-    lo = vecn()
-    hi = vecn()
-    gl = vecn()
-    gu = vecn()
-    empty = wp.int32(-1)
-    for i in range(n):
-        r = s + i
+    @wp.func
+    def constraint_bound(i: int, lo: vecn, hi: vecn, gl: vecn, gu: vecn) -> wp.float64:
+        k = i // 4
+        t = i % 4
+        b = lo[k]
+        if t == 1:
+            b = -hi[k]
+        elif t == 2:
+            b = gl[k]
+        elif t == 3:
+            b = -gu[k]
+        return b
+
+
+    @wp.func
+    def matvec(B: matn, v: vecn, n: int) -> vecn:
+        out = vecn()
+        for i in range(n):
+            s = wp.float64(0.0)
+            for j in range(n):
+                s += B[i, j] * v[j]
+            out[i] = s
+        return out
+
+
+    @wp.func
+    def dot_n(a: vecn, b: vecn, n: int) -> wp.float64:
+        s = wp.float64(0.0)
+        for i in range(n):
+            s += a[i] * b[i]
+        return s
+
+
+    @wp.func
+    def dual_active_set(P: matn, q: vecn, G: matn, lo: vecn, hi: vecn, gl: vecn, gu: vecn, n: int, max_iterations: int):
+        """Goldfarb-Idnani on ``min 1/2 x^T P x + q^T x`` under the one-sided constraints (see the
+        module doc); returns ``(x, status, iterations)``."""
+        Lp = cholesky(P, n)
+        B = matn()  # P^-1
         for j in range(n):
-            Wsym[i, j] = wp.float64(0.5) * (W[r, j] + W[s + j, i])
-            acc = wp.float64(0.0)
+            e = vecn()
+            e[j] = wp.float64(1.0)
+            col = cholesky_solve(Lp, e, n)
+            for i in range(n):
+                B[i, j] = col[i]
+        x = -matvec(B, q, n)
+        act = veci()
+        u = vecn()
+        na = wp.int32(0)  # wp.int32, not int(): dynamic variables (ruff would fold int(0) to 0)
+        p = wp.int32(-1)
+        up = wp.float64(0.0)
+        status = wp.int32(ITERATION_CAP)
+        its = wp.int32(0)
+        for it in range(max_iterations):
+            its = it + 1
+            if p < 0:  # the most violated constraint (per unit normal: the units of x)
+                xmax = wp.float64(0.0)
+                for i in range(n):
+                    xmax = wp.max(xmax, wp.abs(x[i]))
+                worst = -wp.float64(1e-10) * (wp.float64(1.0) + xmax)
+                for i in range(4 * n):
+                    b = constraint_bound(i, lo, hi, gl, gu)
+                    active = wp.int32(0)
+                    for a in range(na):
+                        if act[a] == i:
+                            active = wp.int32(1)
+                    if wp.isfinite(b) and active == 0:
+                        ni = constraint_normal(i, G, n)
+                        norm = wp.sqrt(dot_n(ni, ni, n))
+                        if norm > wp.float64(0.0):
+                            s = (dot_n(ni, x, n) - b) / norm
+                            if s < worst:
+                                worst = s
+                                p = i
+                if p < 0:
+                    status = wp.int32(OPTIMAL)
+                    break
+                up = wp.float64(0.0)
+            n_p = constraint_normal(p, G, n)
+            Bn = matvec(B, n_p, n)
+            z = Bn
+            r = vecn()
+            if na > 0:  # r = (N^T B N)^-1 N^T B n_p, z = B n_p - B N r
+                BN = matn()
+                M = matn()
+                rhs = vecn()
+                for a in range(na):
+                    na_vec = constraint_normal(act[a], G, n)
+                    col = matvec(B, na_vec, n)
+                    for i in range(n):
+                        BN[i, a] = col[i]
+                    rhs[a] = dot_n(na_vec, Bn, n)
+                for a in range(na):
+                    na_vec = constraint_normal(act[a], G, n)
+                    for c in range(na):
+                        s = wp.float64(0.0)
+                        for i in range(n):
+                            s += na_vec[i] * BN[i, c]
+                        M[a, c] = s
+                r = cholesky_solve(cholesky(M, na), rhs, na)
+                for i in range(n):
+                    s = wp.float64(0.0)
+                    for a in range(na):
+                        s += BN[i, a] * r[a]
+                    z[i] = Bn[i] - s
+            zn = dot_n(z, n_p, n)
+            t2 = wp.float64(wp.inf)
+            if zn > wp.float64(1e-12) * dot_n(n_p, Bn, n):
+                t2 = -(dot_n(n_p, x, n) - constraint_bound(p, lo, hi, gl, gu)) / zn
+            t1 = wp.float64(wp.inf)
+            k = wp.int32(-1)
+            for a in range(na):
+                if r[a] > wp.float64(1e-12):
+                    ratio = u[a] / r[a]
+                    if ratio < t1:
+                        t1 = ratio
+                        k = a
+            if not wp.isfinite(t1) and not wp.isfinite(t2):
+                status = wp.int32(INFEASIBLE)
+                break
+            t = wp.min(t1, t2)
+            if wp.isfinite(t2):
+                x = x + t * z
+            for a in range(na):
+                u[a] = u[a] - t * r[a]
+            up += t
+            if t2 <= t1:  # the constraint is met: it joins the active set
+                act[na] = p
+                u[na] = up
+                na += 1
+                p = -1
+            else:  # a multiplier reached zero: that constraint leaves, p is tried again
+                for a in range(k, na - 1):
+                    act[a] = act[a + 1]
+                    u[a] = u[a + 1]
+                na -= 1
+        return x, status, its
+
+
+    @wp.func
+    def clamp(v: wp.float64, lo: wp.float64, hi: wp.float64) -> wp.float64:
+        return wp.min(wp.max(v, lo), hi)
+
+
+    @wp.kernel(module="unique")
+    def inverse_qp(
+        W: wp.array2d(dtype=wp.float64),
+        delta_free: wp.array(dtype=wp.float64),
+        delta_now: wp.array(dtype=wp.float64),
+        inputs: wp.array2d(dtype=wp.float64),
+        world_row_start: wp.array(dtype=wp.int32),
+        world_actuators: wp.array(dtype=wp.int32),
+        effector_start: wp.array(dtype=wp.int32),
+        effector_count: wp.array(dtype=wp.int32),
+        row_weight: wp.array(dtype=wp.float64),
+        epsilon: wp.array(dtype=wp.float64),
+        max_iterations: int,
+        lam: wp.array(dtype=wp.float64),
+        result: wp.array2d(dtype=wp.float64),
+    ):
+        """``lam`` of the actuator rows of every world with ``epsilon[w] >= 0`` (an inverse world;
+        ``lam`` holds the previous actuation, kept, clipped to the force bounds, when the QP fails)."""
+        w = wp.tid()
+        s = world_row_start[w]
+        n = world_actuators[w]
+        result[w, STATUS] = wp.float64(NOT_SOLVED)
+        result[w, ITERATIONS] = wp.float64(0.0)
+        result[w, DETAIL] = wp.float64(-1.0)
+        if epsilon[w] < wp.float64(0.0) or n == 0 or n > NS:
+            return
+        e0 = effector_start[w]
+        ne = effector_count[w]
+        Wsym = matn()
+        task = matn()
+        q = vecn()
+        lo = vecn()
+        hi = vecn()
+        gl = vecn()
+        gu = vecn()
+        empty = wp.int32(-1)
+        for i in range(n):
+            r = s + i
+            for j in range(n):
+                Wsym[i, j] = wp.float64(0.5) * (W[r, j] + W[s + j, i])
+                acc = wp.float64(0.0)
+                for e in range(e0, e0 + ne):
+                    acc += row_weight[e] * W[e, i] * W[e, j]
+                task[i, j] = acc
+            acc_q = wp.float64(0.0)
             for e in range(e0, e0 + ne):
-                acc += row_weight[e] * W[e, i] * W[e, j]
-            task[i, j] = acc
-        acc_q = wp.float64(0.0)
-        for e in range(e0, e0 + ne):
-            acc_q += row_weight[e] * W[e, i] * delta_free[e]
-        q[i] = acc_q
-        lo[i] = inputs[LO, r]
-        hi[i] = inputs[HI, r]
-        dmin, dmax = bounds_this_step(inputs, delta_now, r)
-        gl[i] = dmin - delta_free[r]
-        gu[i] = dmax - delta_free[r]
-        if (dmin > dmax or lo[i] > hi[i]) and empty < 0:
-            empty = i
-    if empty >= 0:
-        status = wp.int32(EMPTY_BOUNDS)
-        result[w, DETAIL] = wp.float64(empty)
-    else:
-        scale = epsilon[w] * spectral_norm(task, n) / wp.max(spectral_norm(Wsym, n), wp.float64(1e-300))
-        P = matn()
-        norm = wp.float64(1e-300)
+                acc_q += row_weight[e] * W[e, i] * delta_free[e]
+            q[i] = acc_q
+            lo[i] = inputs[LO, r]
+            hi[i] = inputs[HI, r]
+            dmin, dmax = bounds_this_step(inputs, delta_now, r)
+            gl[i] = dmin - delta_free[r]
+            gu[i] = dmax - delta_free[r]
+            if (dmin > dmax or lo[i] > hi[i]) and empty < 0:
+                empty = i
+        if empty >= 0:
+            status = wp.int32(EMPTY_BOUNDS)
+            result[w, DETAIL] = wp.float64(empty)
+        else:
+            scale = epsilon[w] * spectral_norm(task, n) / wp.max(spectral_norm(Wsym, n), wp.float64(1e-300))
+            P = matn()
+            norm = wp.float64(1e-300)
+            for i in range(n):
+                for j in range(n):
+                    P[i, j] = task[i, j] + scale * Wsym[i, j]
+                    norm = wp.max(norm, wp.abs(P[i, j]))
+            x, status, its = dual_active_set(P / norm, q / norm, Wsym, lo, hi, gl, gu, n, max_iterations)
+            result[w, ITERATIONS] = wp.float64(its)
+            if status == OPTIMAL:
+                for i in range(n):
+                    lam[s + i] = clamp(x[i], lo[i], hi[i])
+        result[w, STATUS] = wp.float64(status)
+        if status != OPTIMAL:
+            for i in range(n):
+                lam[s + i] = clamp(lam[s + i], lo[i], hi[i])
+
+
+    @wp.kernel(module="unique")
+    def dense_qp(P: wp.array3d(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), G: wp.array3d(dtype=wp.float64),
+                 bounds: wp.array3d(dtype=wp.float64), n: int, max_iterations: int, x_out: wp.array2d(dtype=wp.float64),
+                 status_out: wp.array(dtype=wp.int32)):
+        """One QP per thread in the form :func:`dual_active_set` solves, given explicitly (for tests):
+        ``bounds[k]`` rows lo, hi, gl, gu."""
+        k = wp.tid()
+        Pm = matn()
+        Gm = matn()
+        qv = vecn()
+        lo = vecn()
+        hi = vecn()
+        gl = vecn()
+        gu = vecn()
         for i in range(n):
             for j in range(n):
-                P[i, j] = task[i, j] + scale * Wsym[i, j]
-                norm = wp.max(norm, wp.abs(P[i, j]))
-        x, status, its = dual_active_set(P / norm, q / norm, Wsym, lo, hi, gl, gu, n, max_iterations)
-        result[w, ITERATIONS] = wp.float64(its)
-        if status == OPTIMAL:
-            for i in range(n):
-                lam[s + i] = clamp(x[i], lo[i], hi[i])
-    result[w, STATUS] = wp.float64(status)
-    if status != OPTIMAL:
+                Pm[i, j] = P[k, i, j]
+                Gm[i, j] = G[k, i, j]
+            qv[i] = q[k, i]
+            lo[i] = bounds[k, 0, i]
+            hi[i] = bounds[k, 1, i]
+            gl[i] = bounds[k, 2, i]
+            gu[i] = bounds[k, 3, i]
+        x, status, its = dual_active_set(Pm, qv, Gm, lo, hi, gl, gu, n, max_iterations)
         for i in range(n):
-            lam[s + i] = clamp(lam[s + i], lo[i], hi[i])
+            x_out[k, i] = x[i]
+        status_out[k] = status
 
-
-@wp.kernel
-def dense_qp(P: wp.array3d(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), G: wp.array3d(dtype=wp.float64),
-             bounds: wp.array3d(dtype=wp.float64), n: int, max_iterations: int, x_out: wp.array2d(dtype=wp.float64),
-             status_out: wp.array(dtype=wp.int32)):
-    """One QP per thread in the form :func:`dual_active_set` solves, given explicitly (for tests):
-    ``bounds[k]`` rows lo, hi, gl, gu."""
-    k = wp.tid()
-    Pm = matn()
-    Gm = matn()
-    qv = vecn()
-    lo = vecn()
-    hi = vecn()
-    gl = vecn()
-    gu = vecn()
-    for i in range(n):
-        for j in range(n):
-            Pm[i, j] = P[k, i, j]
-            Gm[i, j] = G[k, i, j]
-        qv[i] = q[k, i]
-        lo[i] = bounds[k, 0, i]
-        hi[i] = bounds[k, 1, i]
-        gl[i] = bounds[k, 2, i]
-        gu[i] = bounds[k, 3, i]
-    x, status, its = dual_active_set(Pm, qv, Gm, lo, hi, gl, gu, n, max_iterations)
-    for i in range(n):
-        x_out[k, i] = x[i]
-    status_out[k] = status
+    _kernels[size] = (inverse_qp, dense_qp)
+    return _kernels[size]

@@ -46,12 +46,14 @@ class DeviceInverse:
         self.epsilon = wp.array(eps, dtype=wp.float64, device=d)
         self.result = wp.zeros((worlds, kernels.NUM_RESULTS), dtype=wp.float64, device=d)
         self.max_iterations = int(max_iterations)
+        most = max((int(rows.world_actuators[w]) for w in self.worlds), default=1)
+        self._kernel = kernels.qp_kernels(kernels.size_for(most))[0] if self.usable else None
 
     def solve(self, W: wp.array, delta_free: wp.array, delta_now: wp.array, inputs: wp.array, lam: wp.array) -> None:
         """``lam`` of the inverse worlds' actuator rows (device; ``lam`` holds the previous
         actuation on entry)."""
         rows = self.rows
-        wp.launch(kernels.inverse_qp, rows.num_worlds,
+        wp.launch(self._kernel, rows.num_worlds,
                   inputs=[W, delta_free, delta_now, inputs, rows.world_row_start_d, rows.world_actuators_d,
                           self.effector_start, self.effector_count, self.row_weight, self.epsilon,
                           self.max_iterations], outputs=[lam, self.result], device=rows.device)
