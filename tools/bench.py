@@ -55,7 +55,8 @@ LAUNCH_FLOOR_US = 1.3  # replay cost of one kernel in a CUDA graph, measured on 
 
 
 class Counter:
-    """Counts kernel launches and host transfers (``numpy()``, ``assign``) while active."""
+    """Counts kernel launches and host transfers (``numpy()``, ``assign``, and ``wp.copy`` between
+    the host and a device) while active."""
 
     def __init__(self):
         import warp as wp
@@ -64,7 +65,7 @@ class Counter:
 
     def __enter__(self):
         wp = self.wp
-        self._saved = (wp.launch, wp.launch_tiled, wp.array.numpy, wp.array.assign)
+        self._saved = (wp.launch, wp.launch_tiled, wp.array.numpy, wp.array.assign, wp.copy)
 
         def count(kind, f):
             def wrapped(*a, **k):
@@ -74,10 +75,19 @@ class Counter:
 
         wp.launch, wp.launch_tiled = count("launches", wp.launch), count("launches", wp.launch_tiled)
         wp.array.numpy, wp.array.assign = count("transfers", wp.array.numpy), count("transfers", wp.array.assign)
+        copy = wp.copy
+
+        def counted_copy(dest, src, *a, **k):
+            if dest.device != src.device:  # host <-> device
+                self.transfers += 1
+            return copy(dest, src, *a, **k)
+
+        wp.copy = counted_copy
         return self
 
     def __exit__(self, *exc):
-        self.wp.launch, self.wp.launch_tiled, self.wp.array.numpy, self.wp.array.assign = self._saved
+        (self.wp.launch, self.wp.launch_tiled, self.wp.array.numpy, self.wp.array.assign,
+         self.wp.copy) = self._saved
 
 
 def kernel_table(results) -> list[dict]:
