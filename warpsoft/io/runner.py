@@ -121,18 +121,28 @@ def check_device(device: str | None) -> None:
 
 @contextmanager
 def stop_on_signals():
-    """SIGINT and SIGTERM raise :class:`Interrupted` inside the run (main thread only), so that
-    the run ends cleanly and keeps what it finished; the previous handlers come back after."""
+    """SIGINT and SIGTERM stop the run cleanly (main thread only): the first one lets the step
+    under way finish and be recorded everywhere, then :class:`Interrupted` is raised by
+    ``check()``; a second one raises it at once. Yields ``check``; the previous handlers come
+    back after."""
+    asked: list[str] = []
+
+    def check() -> None:
+        if asked:
+            raise Interrupted(asked[0])
+
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield check
         return
 
     def handler(signum, frame):
-        raise Interrupted(signal.Signals(signum).name)
+        if asked:  # asked twice: stop now
+            raise Interrupted(asked[0])
+        asked.append(signal.Signals(signum).name)
 
     saved = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        yield
+        yield check
     finally:
         for s, h in saved.items():
             signal.signal(s, h)
@@ -183,10 +193,11 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
         print(f"warpsoft: model of {m.num_nodes} nodes and {m.num_elements} elements on {m.device}; the first step "
               "compiles the kernels (once per machine: they are cached)...", file=sys.stderr, flush=True)
         iterator = tqdm(iterator, desc=scene.name, unit="step", disable=None)
-    with stop_on_signals():
+    with stop_on_signals() as interrupted:
         try:
             flush()  # the outputs exist from the start (status "running")
             for k in iterator:
+                interrupted()  # a stop asked for: after a step fully recorded
                 stats = sim.step()
                 probes = sim.probe_positions()
                 rep.record(stats, probes)
@@ -195,6 +206,7 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
                     writer.write_rows(stats.index, sim.constraint_geometry())
                 if (k + 1) % int(flush_every) == 0:
                     flush()
+            interrupted()
             rep.status = "completed"
         except (Interrupted, KeyboardInterrupt) as exc:
             rep.status, rep.error = "interrupted", f"stopped by {exc or 'SIGINT'} after {len(rep.steps)} steps"
