@@ -38,6 +38,17 @@ def block_world(blk: int, n: int, world: wp.array(dtype=wp.int32)):
 
 
 @wp.func
+def node_add(uniform: bool, local: wp.float64, value: wp.float64, scal: wp.array3d(dtype=wp.float64), c: int,
+             w: int, slot: int) -> wp.float64:
+    """A node's ``value``: into the thread's sum when its block is one world's (returned), else
+    straight into ``scal[c, w, slot]`` (the node's own world)."""
+    if uniform:
+        return local + value
+    wp.atomic_add(scal, c, w, slot, value)
+    return local
+
+
+@wp.func
 def block_add(value: wp.float64, lane: int, uniform: bool, scal: wp.array3d(dtype=wp.float64), c: int, w: int,
               slot: int):
     """Add the block's sum of ``value`` to ``scal[c, w, slot]`` (when the block is one world's)."""
@@ -65,12 +76,8 @@ def pcg_residual(
         bi = wp.cw_mul(m, b[c, i])
         ri = bi - wp.cw_mul(m, ax[c, i])
         r[c, i] = ri
-        if uniform:
-            rr += wp.dot(ri, ri)
-            bb += wp.dot(bi, bi)
-        else:
-            wp.atomic_add(scal, c, world[i], R2_LAST, wp.dot(ri, ri))
-            wp.atomic_add(scal, c, world[i], B2, wp.dot(bi, bi))
+        rr = node_add(uniform, rr, wp.dot(ri, ri), scal, c, world[i], R2_LAST)
+        bb = node_add(uniform, bb, wp.dot(bi, bi), scal, c, world[i], B2)
         i += wp.block_dim()
     block_add(rr, lane, uniform, scal, c, w, R2_LAST)
     block_add(bb, lane, uniform, scal, c, w, B2)
@@ -92,10 +99,7 @@ def pcg_begin(r: wp.array2d(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d), x: w
             p[c, i] = wp.vec3d()
         else:
             p[c, i] = z[c, i]
-            if uniform:
-                rz += wp.dot(r[c, i], z[c, i])
-            else:
-                wp.atomic_add(scal, c, world[i], RZ, wp.dot(r[c, i], z[c, i]))
+            rz = node_add(uniform, rz, wp.dot(r[c, i], z[c, i]), scal, c, world[i], RZ)
         i += wp.block_dim()
     block_add(rz, lane, uniform, scal, c, w, RZ)
 
@@ -111,10 +115,7 @@ def pcg_curvature(p: wp.array2d(dtype=wp.vec3d), ap: wp.array2d(dtype=wp.vec3d),
     while i < i1:
         api = wp.cw_mul(mask[i], ap[c, i])
         ap[c, i] = api
-        if uniform:
-            pap += wp.dot(p[c, i], api)
-        else:
-            wp.atomic_add(scal, c, world[i], PAP, wp.dot(p[c, i], api))
+        pap = node_add(uniform, pap, wp.dot(p[c, i], api), scal, c, world[i], PAP)
         i += wp.block_dim()
     block_add(pap, lane, uniform, scal, c, w, PAP)
 
@@ -140,10 +141,7 @@ def pcg_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: 
         x[c, i] = x[c, i] + alpha * p[c, i]
         ri = r[c, i] - alpha * ap[c, i]
         r[c, i] = ri
-        if uniform:
-            rr += wp.dot(ri, ri)
-        else:
-            wp.atomic_add(scal, c, world[i], R2, wp.dot(ri, ri))
+        rr = node_add(uniform, rr, wp.dot(ri, ri), scal, c, world[i], R2)
         i += wp.block_dim()
     block_add(rr, lane, uniform, scal, c, w, R2)
 
@@ -157,10 +155,7 @@ def pcg_rz(r: wp.array2d(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d), world: 
     rz = wp.float64(0.0)
     i = i0 + lane
     while i < i1:
-        if uniform:
-            rz += wp.dot(r[c, i], z[c, i])
-        else:
-            wp.atomic_add(scal, c, world[i], RZ_NEW, wp.dot(r[c, i], z[c, i]))
+        rz = node_add(uniform, rz, wp.dot(r[c, i], z[c, i]), scal, c, world[i], RZ_NEW)
         i += wp.block_dim()
     block_add(rz, lane, uniform, scal, c, w, RZ_NEW)
 
