@@ -127,7 +127,7 @@ class Simulator:
             if not self.device_inverse.usable:
                 raise SceneError(f"Simulator: qp='device' takes at most {NMAX} actuators per world, got "
                                  f"{int(max(self.rows.world_actuators))}; use qp='piqp'")
-        self.out_of_reach: dict[int, tuple] = {}  # per inverse world: (last effector error, bounds holding it)
+        self.last_effector_error: dict[int, float] = {}  # per inverse world, m (is its target getting closer?)
         self.episodes: dict[tuple, bool] = {}  # (what, world) -> whether a warning about it is in force
         self.row_delta_prev = np.zeros(self.rows.num_rows if self.rows is not None else 0)  # rows after the last step
         self._stepped = False

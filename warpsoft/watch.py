@@ -122,7 +122,7 @@ def out_of_reach(sim: Simulator, stats: StepStats, w: int, delta: np.ndarray, la
     on its way, held only by the change allowed per step), and some actuator is on a bound."""
     rows, ws = sim.rows, stats.worlds[w]
     worst = max(ws.effector_error.items(), key=lambda kv: kv[1], default=(None, 0.0))
-    last_error, last_held = sim.out_of_reach.get(w, (np.inf, ()))
+    last_error = sim.last_effector_error.get(w, np.inf)
     held = ()
     if worst[1] > OUT_OF_REACH * sim.size and worst[1] >= (1.0 - 1e-3) * last_error:
         g, k, start = sim.gauss_seidel.host, gs_kernels, rows.world_row_start[w]
@@ -139,8 +139,7 @@ def out_of_reach(sim: Simulator, stats: StepStats, w: int, delta: np.ndarray, la
                     found.append(f"{act.name} (at its {what}, {bound:g})")
                     break
         held = tuple(found)
-        if held and not last_held:  # entering the state: said once (the bounds may take turns after)
-            stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: the target is out of reach: "
-                                  f"effector '{worst[0]}' misses it by {worst[1]:.3g} m; held back by "
-                                  f"{', '.join(held)}")
-    sim.out_of_reach[w] = (worst[1], held)
+    if begins(sim, ("out of reach", w), bool(held)):  # said once (the bounds may take turns after)
+        stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: the target is out of reach: "
+                              f"effector '{worst[0]}' misses it by {worst[1]:.3g} m; held back by {', '.join(held)}")
+    sim.last_effector_error[w] = worst[1]
