@@ -163,8 +163,24 @@ def test_report_says_how_the_run_ended_and_with_what(tmp_path):
     assert {"warpsoft", "warp", "numpy", "python"} <= set(d["versions"])
     assert d["params"] == {"mesh_size": 0.005}
     assert d["params_used"]["mesh_size"] == 0.005 and d["params_used"]["length"] == 0.1  # defaults included
-    assert d["options"] == {"solver": "auto", "tolerance": 1e-6, "steps": 2}
+    assert d["options"] == {"solver": "auto", "tolerance": 1e-6, "steps": 2, "newton_iterations": 10,
+                            "newton_tolerance": 0.1}
     assert d["inverted_elements"] == [0, 0]
+    assert d["newton"]["iterations"] == [1, 1] and max(d["newton"]["residuals"]) <= 0.1
+
+
+def test_newton_options_reach_the_step(tmp_path):
+    """The finger at dt = 0.5 s iterates by default; with --newton-iterations 1 it cannot, and
+    the report says its residual was not met."""
+    rep = tmp_path / "r.json"
+    args = ["run", str(ROOT / "scenes/finger.py"), "--steps", "3", "--param", "dt=0.5", "--param", "mesh_size=0.006",
+            "--report", str(rep), "--quiet"]
+    assert main(args) == 0
+    assert max(json.loads(rep.read_text())["newton"]["iterations"]) > 1
+    assert main([*args, "--newton-iterations", "1"]) == 0
+    d = json.loads(rep.read_text())
+    assert d["newton"]["iterations"] == [1, 1, 1] and max(d["newton"]["residuals"]) > 0.1
+    assert any("did not converge" in w for w in d["warnings"])
 
 
 def test_an_error_in_the_scenes_own_code_is_named_and_the_finished_steps_kept(tmp_path, capsys):

@@ -79,7 +79,7 @@ def test_pcg_equals_direct_under_large_rotation_and_with_actuators():
 def test_pcg_is_exact_at_its_factorization_and_reports_a_cap():
     """At rest the warped factor is A itself: one iteration. A deformed state with an
     iteration cap of 1 is reported as not converged (never silent)."""
-    sim = ws.Simulator(bent_beam(static=True), solver="pcg", max_iterations=1)
+    sim = ws.Simulator(bent_beam(static=True), solver="pcg", max_iterations=1, newton_iterations=1)
     stats = sim.step()
     assert stats.cg_iterations == 1 and stats.converged
     with pytest.warns(ws.ConvergenceWarning, match="stopped after 1 iterations"):

@@ -8,7 +8,7 @@ import warpsoft as ws
 
 def static_trio(scene_module):
     """Three different quasi-static scenes: cables on a bar, a pressurized cavity, a loaded beam."""
-    return [scene_module("scenes/validation/cable_bar.py").build(cable_displacement=0.001, mesh_size=0.005),
+    return [scene_module("scenes/validation/cable_bar.py").build(cable_displacement=0.0002, mesh_size=0.005),
             scene_module("scenes/validation/pressure_sphere.py").build(mesh_size=0.005),
             scene_module("scenes/validation/cantilever.py").build(tip_force=-0.05, mesh_size=0.005)]
 
@@ -60,9 +60,7 @@ def test_three_static_worlds_step_as_alone(scene_module, solver):
     assert sim.model.num_worlds == 3 and list(sim.rows.world_actuators) == [1, 1, 0]
     assert_same(sim, alone, together, 1e-8)
     if solver == "pcg":  # each world converges on its own residual, in its own iteration count
-        for k in range(3):
-            assert [together[k].worlds[w].cg_iterations for w in range(3)] == \
-                [alone[w][k].cg_iterations for w in range(3)]
+        assert_own_iterations(alone, together)
 
 
 @pytest.mark.parametrize("solver, qp", [("direct", "piqp"), ("pcg", "piqp"), ("direct", "device")])
@@ -72,8 +70,21 @@ def test_three_dynamic_robots_step_as_alone(scene_module, solver, qp):
     assert [s.inverse for s in sim.model.scenes] == [True, True, False]
     assert list(sim.rows.world_actuators) == [4, 8, 4] and sim.rows.num_columns == 8
     assert_same(sim, alone, together, 1e-8)
-    for k in range(4):
-        assert [together[k].worlds[w].cg_iterations for w in range(3)] == [alone[w][k].cg_iterations for w in range(3)]
+    assert_own_iterations(alone, together)
+
+
+def assert_own_iterations(alone, together):
+    """Each world's CG iterations are its own: in a step where no world iterated Newton, the same
+    as alone; in one where some did, the others (held in place) add their compliance columns'
+    few iterations per extra solve (their warm start sits at the tolerance's edge)."""
+    for k, step in enumerate(together):
+        for w, mine in enumerate(step.worlds):
+            own = alone[w][k]
+            assert mine.newton_iterations == own.newton_iterations
+            if step.newton_iterations == 1:
+                assert mine.cg_iterations == own.cg_iterations
+            else:
+                assert mine.cg_iterations >= own.cg_iterations
 
 
 def test_one_world_model_is_the_scene(scene_module):

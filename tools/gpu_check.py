@@ -2,18 +2,23 @@
 captured (graph-replayed) step equals the uncaptured one, and a model of three worlds steps
 each world as it steps alone.
 
-    python tools/gpu_check.py [--steps 20] [--scenes scenes/trunk.py ...] [--out out/gpu_check]
+    python tools/gpu_check.py [--steps 20] [--scenes scenes/trunk.py scenes/finger.py:dt=0.5 ...]
+                              [--out out/gpu_check]
 
-For each scene: probe trajectories of (a) ``direct`` on the CPU device, (b) ``pcg`` on CUDA
+A scene is a path, optionally followed by ``:key=value,key=value`` (its parameters, Python
+literals). For each scene: probe trajectories of (a) ``direct`` on the CPU device, (b) ``pcg`` on CUDA
 with the step's device part replayed as graphs, (c) ``pcg`` on CUDA launched kernel by kernel,
 (d) ``pcg`` on CUDA with a float32 dense inverse; the largest probe differences (m) between them,
-and the median CG iterations. Then the three worlds of tests/test_worlds.py (an inverse Diamond,
-an inverse Trunk, a Diamond driven directly) on CUDA, together and alone. Writes gpu_check.json.
+and the median CG iterations and the most Newton iterations of a step (the finger at dt = 0.5 s
+iterates: its graphs of later iterations and line searches are checked too). Then the three
+worlds of tests/test_worlds.py (an inverse Diamond, an inverse Trunk, a Diamond driven
+directly) on CUDA, together and alone. Writes gpu_check.json.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import sys
 import traceback
@@ -25,7 +30,7 @@ from warpsoft import Simulator
 from warpsoft.io.runner import build_scene
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENES = ["scenes/finger.py", "scenes/trunk.py", "scenes/diamond.py"]
+SCENES = ["scenes/finger.py", "scenes/trunk.py", "scenes/diamond.py", "scenes/finger.py:dt=0.5,mesh_size=0.005"]
 RUNS = {
     "cpu_direct": ("cpu", "direct", {}),
     "cuda_pcg_graph": ("cuda", "pcg", {}),
@@ -34,14 +39,23 @@ RUNS = {
 }
 
 
-def trajectory(path: str, device: str, solver: str, steps: int, tolerance: float, **options) -> dict:
-    sim = Simulator(build_scene(ROOT / path), device=device, solver=solver, tolerance=tolerance, **options)
-    probes, its = [], []
+def scene_arg(text: str) -> tuple[str, dict]:
+    """``path[:key=value,...]`` -> (path, parameters)."""
+    path, _, params = text.partition(":")
+    pairs = (item.split("=", 1) for item in params.split(",") if item)
+    return path, {k.strip(): ast.literal_eval(v.strip()) for k, v in pairs}
+
+
+def trajectory(spec: str, device: str, solver: str, steps: int, tolerance: float, **options) -> dict:
+    path, params = scene_arg(spec)
+    sim = Simulator(build_scene(ROOT / path, params), device=device, solver=solver, tolerance=tolerance, **options)
+    probes, its, newton = [], [], []
     for _ in range(steps):
         stats = sim.step()
         probes.append(np.concatenate(list(sim.probe_positions().values())))
         its.append(stats.cg_iterations)
-    return {"probes": np.array(probes), "iterations": float(np.median(its))}
+        newton.append(stats.newton_iterations)
+    return {"probes": np.array(probes), "iterations": float(np.median(its)), "newton": int(max(newton))}
 
 
 def worlds_check(device: str, steps: int = 6) -> dict:
@@ -84,6 +98,7 @@ def main(argv=None) -> int:
             try:
                 runs[name] = trajectory(path, device, solver, args.steps, args.tolerance, **options)
                 row[f"{name}_iterations"] = runs[name]["iterations"]
+                row[f"{name}_newton_max"] = runs[name]["newton"]
             except Exception as exc:  # report and go on: one failure must not hide the other checks
                 ok = False
                 row[f"{name}_error"] = f"{type(exc).__name__}: {exc}"

@@ -16,6 +16,7 @@ from .elastic import element_model
 from .errors import SceneError, SimulationError
 from .linear import SOLVERS, SystemOperator, choose, make_solver
 from .model import Model
+from .newton import Newton
 from .readback import Readback
 from .resolve import GaussSeidel, kinematic_jacobian
 from .resolve.inverse_device import NMAX, DeviceInverse
@@ -62,13 +63,21 @@ class Simulator:
             the CPU. Measured on the H200: the device QP takes 87-127 us for 4 actuators (the
             Diamond: steps 1.69 -> 1.38 ms) but 0.6 ms for the Trunk's 8, more than piqp and its
             round trip (docs/performance.md).
+        newton_iterations: most linearizations per step (Newton iterations; 1: one linearization,
+            as v1). Most steps need one: the step iterates only when the nonlinear residual after
+            it says so (a large time step against the motion, a body turning fast).
+        newton_tolerance: the nonlinear residual along the last correction, relative to the
+            correction's own (``|R . e| / e . A e``, see :mod:`warpsoft.newton`), at which a world's
+            step is done; above it after ``newton_iterations``, the step warns.
+        line_search: most shortened retries of a Newton step that overshot (0: full steps only).
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
                  tolerance: float = 1e-6, max_iterations: int = 2000, warm_start: bool = True,
                  timing: bool = True, check_every: int | None = None, graphs: bool = True,
                  factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
-                 qp: str = "auto"):
+                 qp: str = "auto", newton_iterations: int = 10, newton_tolerance: float = 0.1,
+                 line_search: int = 4):
         if solver not in SOLVERS:
             raise SceneError(f"Simulator: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         if not (0.0 < float(tolerance) < 1.0):
@@ -93,7 +102,7 @@ class Simulator:
         self.f_ext = wp.zeros(n, dtype=wp.vec3d, device=d)  # N
         if m.f_const is not None:
             wp.copy(self.f_ext, m.f_const)
-        self.dx = wp.zeros(n, dtype=wp.vec3d, device=d)  # m
+        self.dx = wp.zeros(n, dtype=wp.vec3d, device=d)  # a Newton iteration's correction (m)
         self.health_flag = wp.zeros(1, dtype=wp.int32, device=d)  # count of non-finite nodes
         self.health_step = wp.zeros(1, dtype=wp.float64, device=d)  # largest |dx|^2 (m^2)
         self.inverted = wp.zeros(m.num_worlds, dtype=wp.int32, device=d)  # elements with det F <= 0, per world
@@ -146,10 +155,13 @@ class Simulator:
             self.columns, self.X = self.rhs[1:], self.sol[1:]
         self.solver = make_solver(self.solver_name, self.operator, 1 + ncol, tolerance, max_iterations, graphs,
                                   check_every, factorization, preconditioner, precision)
+        self.solve_result = None  # the last solve's outcome, when it ran outside a graph
+        self.newton = Newton(self, newton_iterations, newton_tolerance, line_search)
 
         # what the host reads of a step, in one transfer each: before the inverse model's QP, and
         # after the step (the solver's outcome, health, rows at the new state)
-        after = {"health_flag": self.health_flag, "health_step": self.health_step, "inverted": self.inverted}
+        after = {"health_flag": self.health_flag, "health_step": self.health_step, "inverted": self.inverted,
+                 "newton": self.newton.sums, "newton_slope": self.newton.slope0}
         after |= getattr(self.solver, "readback_arrays", dict)()
         self.before_qp = None
         if self.rows is not None:
@@ -160,7 +172,7 @@ class Simulator:
                 if self.device_inverse is not None:
                     after["qp"] = self.device_inverse.result
                 self.before_qp = Readback({"W": self.rows.W, "delta_free": self.rows.delta_free,
-                                           "delta": self.rows.delta, "lam": gs.lam}, d)
+                                           "delta": self.newton.delta_start, "lam": gs.lam}, d)
         self.after_step = Readback(after, d)
 
     # ---- the step ------------------------------------------------------------------------

@@ -22,8 +22,9 @@ class WorldStats:
     actuator ``delta`` (cable m, cavity m^3) and ``lambda`` (N, Pa), effector positions and
     targets (m) and the distance between them on the controlled axes (m); its elements turned
     inside out after the step (``det F <= 0``); ``linearization_error`` (m, m^3), how far its
-    rows ended from the step's linear prediction ``delta_free + W lambda``; in the direct model, how far each
-    displacement-driven actuator is from its command this step (cable m, cavity m^3)."""
+    rows ended from the last linear prediction ``delta_free + W lambda``; its Newton iterations (linear
+    solves) and final relative nonlinear residual ``|R| / |terms of R|``; in the direct model, how far
+    each displacement-driven actuator is from its command this step (cable m, cavity m^3)."""
 
     cg_iterations: int = 0
     resolve_iterations: int = 0
@@ -32,6 +33,8 @@ class WorldStats:
     qp_seconds: float = 0.0
     inverted_elements: int = 0
     linearization_error: float = 0.0
+    newton_iterations: int = 0
+    newton_residual: float = 0.0
     actuator_residual: dict[str, float] = field(default_factory=dict)
     effector_error: dict[str, float] = field(default_factory=dict)
     actuator_delta: dict[str, float] = field(default_factory=dict)
@@ -54,13 +57,18 @@ def _of_the_world(name: str):
 class StepStats:
     """What one step did: solver statistics and the wall time (s) of each stage that ran.
 
-    Stages: ``linearize`` (rotations, forces, preconditioner or factorization), ``loads`` (only
-    with time-dependent loads), ``free_solve`` (the right-hand side and, with actuators, their
-    compliance columns ``H^T``, solved together in one batched solve), ``compliance``
-    (``delta_free`` and ``W`` from the solved columns), ``resolve`` (the multipliers),
-    ``correct`` (the correction, the update, the health check). ``cg_iterations`` counts the
-    iterations of that one solve (0 for a direct solve; the most any world needed);
-    ``compliance_iterations`` is the same count when actuators rode along, else 0. ``worlds``
+    Stages (summed over the step's Newton iterations): ``linearize`` (rotations, forces,
+    preconditioner or factorization, rows and their columns ``H^T``, the nonlinear residual, the
+    health check), ``free_solve`` (the motion and, with actuators, their compliance columns,
+    solved together in one batched solve), ``compliance`` (``delta_free`` and ``W`` from the
+    solved columns), ``resolve`` (the multipliers), ``correct`` (the correction and the update);
+    on CUDA the captured graphs instead (``device_step``, ``newton_step``, ``line_search``, and
+    around a host QP ``device_before_qp``, ``newton_before_qp``, ``device_after_qp``).
+    ``cg_iterations`` counts the iterations of the step's solves (0 for a direct solve; per
+    solve, the most any world needed); ``compliance_iterations`` is the same count when
+    actuators rode along, else 0. ``newton_iterations`` is the most linearizations a world
+    needed, ``newton_residual`` the largest final relative residual of a world, and
+    ``line_searches`` the shortened steps tried. ``worlds``
     holds each world's rows; with one world, its fields read as attributes of the step too
     (``stats.actuator_delta`` and so on).
     """
@@ -74,6 +82,9 @@ class StepStats:
     total: float = 0.0
     warnings: list[str] = field(default_factory=list)
     compliance_iterations: int = 0
+    newton_iterations: int = 0
+    newton_residual: float = 0.0
+    line_searches: int = 0
     worlds: list[WorldStats] = field(default_factory=list)
 
     resolve_iterations = _of_the_world("resolve_iterations")

@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 import warp as wp
 
-from warpsoft.kernels import integrate
 from warpsoft.kernels.elastic import geometry
 from warpsoft.kernels.linear import cg as linalg
 from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
@@ -34,10 +33,11 @@ if TYPE_CHECKING:
 def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     """Advance every world by one step; the state is swapped in only when the step succeeded.
 
-    On CUDA, when the solver allows it, the device part is replayed as CUDA graphs: one for the
-    whole step, or two around the host QP when some world uses the inverse model. Elsewhere the
-    same stages run one by one, each timed. Either way the host reads the step in one transfer
-    (and one more before the QP): see ``readback.py``.
+    The step is a Newton iteration (``newton.py``) that most steps leave after its first
+    linearization. On CUDA, when the solver allows it, each iteration's device part is replayed
+    as a CUDA graph: one, or two around the host QP when some world uses the inverse model.
+    Elsewhere the same stages run one by one, each timed. Either way the host reads an
+    iteration in one transfer (and one more before the QP): see ``readback.py``.
     """
     m, rows = sim.model, sim.rows
     stats = StepStats(sim.step_index + 1, sim.time + m.dt, worlds=[WorldStats() for _ in range(m.num_worlds)])
@@ -46,40 +46,25 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     inverse = actuated and any(s.inverse and rows.world_actuators[w] for w, s in enumerate(m.scenes))
     host_qp = inverse and sim.device_inverse is None
     host_inputs(sim, stats.time, controls)  # user schedules, evaluated once; uploads only when they change
-
-    if sim.capture and getattr(sim.solver, "capturable", False):
-        if host_qp:  # two graphs around the host QP
-            replay(sim, stats, "device_before_qp", lambda: (before_resolve(sim, actuated), sim.before_qp.gather()))
-            with stage(sim, stats, "resolve"):
-                resolve_inverse(sim, stats, sim.before_qp.read())
-            replay(sim, stats, "device_after_qp", lambda: (after_resolve(sim, actuated), sim.after_step.gather()))
-        else:  # the whole step as one graph
-            replay(sim, stats, "device_step", lambda: (before_resolve(sim, actuated), after_resolve(sim, actuated),
-                                                       sim.after_step.gather()))
-        host = sim.after_step.read()
-        res = sim.solver.result(host)
-        sim.solver.finish(res)  # the preconditioner learns the iterations (solve() does it itself)
-        finish_solve(sim, stats, res)
-    else:
-        with stage(sim, stats, "linearize"):  # rotations, internal forces, preconditioner
-            linearize(sim)
-        with stage(sim, stats, "free_solve"):  # A [dx_free, X] = [b, H_a^T]
-            free_solve_inputs(sim, actuated)
-            finish_solve(sim, stats, sim.solver.solve(sim.rhs, sim.sol))  # (pcg: the loop is one graph on CUDA)
-        if actuated:
-            with stage(sim, stats, "compliance"):  # delta_free = delta(q) + H dx_free; W = s H X
-                compliance(sim)
-            with stage(sim, stats, "resolve"):  # lambda of every world: direct model or inverse model
-                resolve_direct(sim)
-                if sim.device_inverse is not None:
-                    resolve_inverse_on_device(sim)
-                elif inverse:
-                    sim.before_qp.gather()
-                    resolve_inverse(sim, stats, sim.before_qp.read())
-        with stage(sim, stats, "correct"):  # dx = dx_free + s X lambda; q += dx, v = dx / h
-            after_resolve(sim, actuated)
-            sim.after_step.gather()
-            host = sim.after_step.read()
+    newton = sim.newton
+    newton.begin_step()
+    first = True
+    while True:
+        host = iterate(sim, stats, actuated, host_qp, first)
+        while newton.judge(host):  # line search: a world that overshot retries a shorter step
+            host = run(sim, stats, "line_search", [("correct", lambda: newton.advance(correction(sim, actuated, False),
+                                                                                      actuated, retry=True)),
+                                                   ("linearize", lambda: relinearize(sim, actuated))],
+                       capturable(sim))
+            watch.health(sim, stats, host, warn=False)
+        if not newton.go_on():
+            break
+        if first:  # the next solves start their corrections from 0: keep the step's motion to warm-start the next step
+            wp.copy(newton.warm, sim.dx_free[0])
+        first = False
+    if not first:
+        wp.copy(sim.dx_free[0], newton.warm)
+    record_newton(sim, stats)
     watch.health(sim, stats, host)
     watch.inverted_elements(sim, stats, host)
     if rows is not None:
@@ -93,38 +78,49 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     return stats
 
 
-def before_resolve(sim: Simulator, actuated: bool) -> None:
-    """Device work up to the multipliers: linearize, the batched solve, the compliance, the
-    direct model's Gauss-Seidel and the inverse model's QP when it runs on the device."""
-    linearize(sim)
-    free_solve_inputs(sim, actuated)
-    sim.solver.run(sim.rhs, sim.sol)
+def iterate(sim: Simulator, stats: StepStats, actuated: bool, host_qp: bool, first: bool) -> dict[str, np.ndarray]:
+    """One Newton iteration (the first also starts the step), read back in one transfer."""
+    captured = capturable(sim)
+    solve = [("linearize", lambda: begin(sim, actuated))] if first else []
+    solve.append(("free_solve", lambda: free_solve(sim, actuated, first, captured)))
     if actuated:
-        compliance(sim)
-        resolve_direct(sim)
-        if sim.device_inverse is not None:
-            resolve_inverse_on_device(sim)
+        solve += [("compliance", lambda: compliance(sim)), ("resolve", lambda: resolve_on_device(sim))]
+    finish = [("correct", lambda: sim.newton.advance(correction(sim, actuated), actuated)),
+              ("linearize", lambda: relinearize(sim, actuated))]
+    if host_qp:  # two graphs around the host QP
+        before = run(sim, stats, "device_before_qp" if first else "newton_before_qp", solve, captured, sim.before_qp)
+        with stage(sim, stats, "resolve"):
+            resolve_inverse(sim, stats, before)
+        host = run(sim, stats, "device_after_qp", finish, captured)
+    else:  # the whole iteration as one graph
+        host = run(sim, stats, "device_step" if first else "newton_step", solve + finish, captured)
+    res = sim.solver.result(host) if captured else sim.solve_result
+    if captured:
+        sim.solver.finish(res)  # the preconditioner learns the iterations (solve() does it itself)
+    finish_solve(sim, stats, res)
+    watch.health(sim, stats, host, warn=False)
+    return host
 
 
-def after_resolve(sim: Simulator, actuated: bool) -> None:
-    """Device work after the multipliers: ``dx = dx_free + s X lambda``, ``q += dx``, ``v = dx / h``,
-    the health check's kernel and the rows at the new state."""
-    m, rows = sim.model, sim.rows
-    dx = sim.dx_free[0]
-    if actuated:
-        rows.correct(dx, sim.X, sim.gauss_seidel.lam, sim.constraint_scale, sim.dx)
-        dx = sim.dx
-    wp.launch(integrate.advance, m.num_nodes, inputs=[sim.state.q, dx, 0.0 if m.static else 1.0 / m.dt],
-              outputs=[sim.next.q, sim.next.v], device=m.device)
-    sim.health_flag.zero_()
-    sim.health_step.zero_()
-    wp.launch(linalg.step_health, m.num_nodes, inputs=[sim.next.q, dx], outputs=[sim.health_flag, sim.health_step],
-              device=m.device)
-    sim.inverted.zero_()
-    wp.launch(geometry.count_inverted, m.num_elements, inputs=[sim.next.q, m.tets, m.dm_inv, m.elem_world],
-              outputs=[sim.inverted], device=m.device)
-    if rows is not None:
-        rows.evaluate(sim.next.q)
+def capturable(sim: Simulator) -> bool:
+    """Whether this iteration's device work can be replayed as graphs (CUDA, and a solver that
+    needs no host work now)."""
+    return sim.capture and getattr(sim.solver, "capturable", False)
+
+
+def run(sim: Simulator, stats: StepStats, name: str, parts: list, captured: bool,
+        readback=None) -> dict[str, np.ndarray]:
+    """Run ``parts`` (stage name, work), then gather ``readback`` (the step's by default) and read
+    it: as one replayed graph timed as ``name`` if ``captured``, else stage by stage."""
+    readback = readback or sim.after_step
+    if captured:
+        replay(sim, stats, name, lambda: ([work() for _, work in parts], readback.gather()))
+    else:
+        for what, work in parts:
+            with stage(sim, stats, what):
+                work()
+        readback.gather()
+    return readback.read()
 
 
 def replay(sim: Simulator, stats: StepStats, name: str, work) -> None:
@@ -144,55 +140,106 @@ def replay(sim: Simulator, stats: StepStats, name: str, work) -> None:
 
 
 # ---- stages ------------------------------------------------------------------------------
-def linearize(sim: Simulator) -> None:
+def linearize(sim: Simulator, q: wp.array) -> None:
     """Element rotations and internal forces at ``q``; the solver's per-linearization update."""
     sim.f_int.zero_()
-    sim.elastic.linearize(sim.state.q, sim.rot, sim.f_int)
+    sim.elastic.linearize(q, sim.rot, sim.f_int)
     sim.solver.prepare()
+    sim.newton.linearized_at(q)
 
 
-def free_solve_inputs(sim: Simulator, actuated: bool) -> None:
-    """The batched solve's right-hand sides: ``b = f_int + f_ext`` (quasi-static) or
-    ``h (f_int + f_ext) + M v`` (dynamic), fixed DOFs 0; with actuators, their columns ``H_a^T``."""
-    m = sim.model
+def begin(sim: Simulator, actuated: bool) -> None:
+    """The step's start: the linearization at ``q`` (made by the last step unless the state was
+    changed since), the rows there and, with actuators, their columns ``H_a^T``; the first
+    right-hand side ``b = P(f_int + f_ext)`` (quasi-static) or ``P(h (f_int + f_ext) + M v)``."""
+    q = sim.state.q
+
+    def again() -> None:  # the state changed since the last step linearized it
+        linearize(sim, q)
+        if actuated:
+            sim.rows.evaluate(q)
+            sim.rows.actuator_columns(sim.columns)
+
+    sim.newton.linearize_if_moved(q, again)
+    if actuated:  # effectors alone need no column: they are measured after
+        # Rows are linearized where A is. Evaluated at the free configuration instead, H
+        # lets a follower load (a pressure) gain energy step after step (the pneunet
+        # oscillated ever wider), and delta(q_free) misses the imposed displacement by a
+        # second-order term (17 % on a bent cable beam); the linear prediction meets it
+        # exactly once the step has converged. (Effector rows measure x - target: their
+        # targets moved with the time, so the rows are evaluated again.)
+        sim.rows.evaluate(q)
+        wp.copy(sim.newton.delta_start, sim.rows.delta)  # the actuators' per-step limits count from here
+    sim.newton.start()
+
+
+def free_solve(sim: Simulator, actuated: bool, first: bool, captured: bool) -> None:
+    """The batched solve ``A [e, X] = [r, H_a^T]`` at the current linearization: the free motion
+    (the step's first, or a Newton correction, started from 0) and the actuators' compliance
+    columns, warm-started from the last solve."""
     if not sim.warm_start:
         sim.sol.zero_()
-    if m.static:
-        wp.launch(integrate.rhs_static, m.num_nodes, inputs=[sim.f_int, sim.f_ext, m.mask], outputs=[sim.b[0]],
-                  device=m.device)
+    elif not first:
+        sim.dx_free.zero_()
+    if not first:
+        sim.newton.hold_done_worlds()
+    sim.newton.accept(actuated)
+    if captured:
+        sim.solver.run(sim.rhs, sim.sol)  # read with the iteration
     else:
-        wp.launch(integrate.rhs_dynamic, m.num_nodes, inputs=[sim.state.v, m.mass, sim.f_int, sim.f_ext, m.dt, m.mask],
-                  outputs=[sim.b[0]], device=m.device)
-    if actuated:  # effectors alone need no column: they are measured after
-        # Rows are linearized where A is, at q. Evaluated at the free configuration
-        # instead, H lets a follower load (a pressure) gain energy step after step (the
-        # pneunet oscillated ever wider), and delta(q_free) misses the imposed
-        # displacement by a second-order term (17 % on a bent cable beam); the linear
-        # prediction meets it exactly once the step has converged.
-        sim.rows.evaluate(sim.state.q)
-        sim.rows.actuator_columns(sim.columns)
+        sim.solve_result = sim.solver.solve(sim.rhs, sim.sol)  # (pcg: the loop is one graph on CUDA)
 
 
 def compliance(sim: Simulator) -> None:
-    """``delta_free = delta(q) + H dx_free`` and ``W = s H X`` (device)."""
+    """``delta_free = delta(q_k) + H e`` and ``W = s H X`` (device)."""
     sim.rows.predict(sim.dx_free)
     sim.rows.compliance(sim.X, sim.constraint_scale)
 
 
+def correction(sim: Simulator, actuated: bool, make: bool = True) -> wp.array:
+    """The iteration's correction ``e = e_free + s X lambda`` (made here from the resolve's
+    multipliers unless ``make`` is False: the line search reuses it), or ``e_free``."""
+    if not actuated:
+        return sim.dx_free[0]
+    if make:
+        sim.rows.correct(sim.dx_free[0], sim.X, sim.gauss_seidel.lam, sim.constraint_scale, sim.dx)
+    return sim.dx
+
+
+def relinearize(sim: Simulator, actuated: bool) -> None:
+    """At the new positions: the linearization (the next iteration's or step's), the rows (what
+    the report records) and their columns, the nonlinear residual, the health check's kernels."""
+    m, q = sim.model, sim.next.q
+    linearize(sim, q)
+    if sim.rows is not None:
+        sim.rows.evaluate(q)
+    if actuated:
+        sim.rows.actuator_columns(sim.columns)
+    sim.newton.residual(correction(sim, actuated, make=False))
+    sim.health_flag.zero_()
+    sim.health_step.zero_()
+    wp.launch(linalg.step_health, m.num_nodes, inputs=[q, sim.newton.dx[0]],
+              outputs=[sim.health_flag, sim.health_step], device=m.device)
+    sim.inverted.zero_()
+    wp.launch(geometry.count_inverted, m.num_elements, inputs=[q, m.tets, m.dm_inv, m.elem_world],
+              outputs=[sim.inverted], device=m.device)
+
+
 def finish_solve(sim: Simulator, stats: StepStats, res) -> None:
-    """Record the batched solve (read once, after it ran); a non-finite one is an error, a
-    non-converged one a warning."""
+    """Record a batched solve (read once, after it ran; a step's Newton iterations add up); a
+    non-finite one is an error, a non-converged one a warning."""
     na = sim.rhs.shape[0] - 1
     what = "free solve" if na == 0 else f"free solve and {na} compliance column{'s' if na > 1 else ''}"
     if not math.isfinite(res.residual):
         raise SimulationError(f"step {stats.index} (t = {stats.time:g} s): the {what} met non-finite values "
                               "(NaN or inf in the state, loads or rows); the state before the step is kept")
-    stats.cg_iterations, stats.cg_residual = res.iterations, res.residual
-    stats.compliance_iterations = res.iterations if na else 0
-    stats.converged = res.converged
+    stats.cg_iterations += res.iterations
+    stats.cg_residual = max(stats.cg_residual, res.residual)
+    stats.compliance_iterations += res.iterations if na else 0
+    stats.converged = stats.converged and res.converged
     per_world = getattr(res, "world_iterations", None)  # when the solver counts them per world
     for w, ws in enumerate(stats.worlds):
-        ws.cg_iterations = int(per_world[w]) if per_world is not None else res.iterations
+        ws.cg_iterations += int(per_world[w]) if per_world is not None else res.iterations
     if not res.converged:
         msg = (f"step {stats.index}: CG ({what}) stopped after {res.iterations} iterations at relative residual "
                f"{res.residual:.3e} > tolerance {sim.solver.tolerance:.1e}; {convergence_advice(sim)}")
@@ -244,12 +291,15 @@ def actuator_values(sim: Simulator, t: float, controls: list[Control | None]) ->
     return values
 
 
-def resolve_direct(sim: Simulator) -> None:
-    """Direct-model worlds: projected Gauss-Seidel on the device, every world at once (inverse
-    worlds are overwritten by their QP)."""
-    rows = sim.rows
+def resolve_on_device(sim: Simulator) -> None:
+    """Direct-model worlds: projected Gauss-Seidel on the device, every world at once; then the
+    inverse-model worlds' QP when it runs on the device (each leaves the other's multipliers
+    alone). The actuators' per-step limits count from the rows at the step's start."""
+    rows, start = sim.rows, sim.newton.delta_start
     if any(not s.inverse for s in sim.model.scenes):
-        sim.gauss_seidel.solve(rows.W, rows.delta_free, rows.delta)
+        sim.gauss_seidel.solve(rows.W, rows.delta_free, start)
+    if sim.device_inverse is not None:
+        sim.device_inverse.solve(rows.W, rows.delta_free, start, sim.gauss_seidel.inputs, sim.gauss_seidel.lam)
 
 
 def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
@@ -271,11 +321,21 @@ def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray
     gs.lam.assign(lam)
 
 
-def resolve_inverse_on_device(sim: Simulator) -> None:
-    """Inverse-model worlds: the QP of each on the device (after the Gauss-Seidel of the direct
-    worlds, whose multipliers it leaves alone)."""
-    rows, gs = sim.rows, sim.gauss_seidel
-    sim.device_inverse.solve(rows.W, rows.delta_free, rows.delta, gs.inputs, gs.lam)
+def record_newton(sim: Simulator, stats: StepStats) -> None:
+    """Each world's Newton iterations and final relative residual; a warning, once per episode,
+    for a world that ended above the tolerance."""
+    newton = sim.newton
+    for w, ws in enumerate(stats.worlds):
+        ws.newton_iterations, ws.newton_residual = int(newton.iterations[w]), float(newton.error[w])
+        if watch.begins(sim, ("newton", w), ws.newton_residual > newton.tolerance):
+            stats.warnings.append(
+                f"step {stats.index}{sim.world_label(w)}: the implicit step did not converge: nonlinear residual "
+                f"{ws.newton_residual:.3g} > newton_tolerance {newton.tolerance:g} after {ws.newton_iterations} "
+                "Newton iteration(s); the motion is not resolved within the step: a smaller dt, or more "
+                "newton_iterations")
+    stats.newton_iterations = int(newton.iterations.max())
+    stats.newton_residual = float(newton.error.max())
+    stats.line_searches = newton.trials
 
 
 def record_device_qp(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:

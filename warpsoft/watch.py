@@ -27,10 +27,11 @@ def begins(sim: Simulator, key: tuple, active: bool) -> bool:
 ABSURD_STEP = 10.0  # a node moving this many times the model's size in one step: rejected like a NaN
 
 
-def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
+def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], warn: bool = True) -> None:
     """No NaN leaves a step: a non-finite node is an error, and so is a node that moved more
     than ``ABSURD_STEP`` times the model's size in one step (finite but absurd: a load of 1e300 N
-    put positions at 1e298 m and "-inf" in the report); more than the model's size is a warning."""
+    put positions at 1e298 m and "-inf" in the report); more than the model's size is a warning
+    (when ``warn``: the step's last read, not each of its Newton iterations)."""
     bad, largest = int(host["health_flag"][0]), float(np.sqrt(host["health_step"][0]))
     if not bad and largest > ABSURD_STEP * sim.size:
         sim.forget_warm_starts()
@@ -38,7 +39,7 @@ def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> Non
             f"step {stats.index} (t = {stats.time:g} s): a node moved {largest:.3g} m in one step, more than "
             f"{ABSURD_STEP:g} times the model's size ({sim.size:.3g} m): loads or inputs out of all proportion "
             "(or a diverging solve); the state before the step is kept")
-    if largest > sim.size:
+    if warn and largest > sim.size:
         stats.warnings.append(f"step {stats.index}: a node moved {largest:.3g} m in one step, more than the "
                               f"model's size {sim.size:.3g} m: the simulation is likely unstable")
     if bad:

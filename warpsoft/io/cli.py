@@ -32,6 +32,12 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--solver", choices=["auto", "pcg", "direct", "jacobi"], default="auto",
                    help="linear solver (default: auto, the fastest measured on the device: direct on cpu, pcg on cuda)")
     r.add_argument("--tolerance", type=float, default=1e-6, help="CG relative residual (default: 1e-6)")
+    r.add_argument("--newton-iterations", type=int, default=10, metavar="N",
+                   help="most linearizations per step; 1: one, as SOFA's implicit Euler (default: 10, used only "
+                        "when the residual says so)")
+    r.add_argument("--newton-tolerance", type=float, default=0.1,
+                   help="nonlinear residual left along a step's correction, relative to it, at which the step is "
+                        "done (default: 0.1; 1e-3 resolves each step fully)")
     r.add_argument("--flush-every", type=int, default=50, metavar="N",
                    help="write the report and the USD every N steps as the run goes (default: 50)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -81,7 +87,8 @@ def main(argv: list[str] | None = None) -> int:
                   flush=True)
         rep = run(scene, steps=args.steps, device=args.device, usd=args.usd, report=args.report,
                   solver=args.solver, tolerance=args.tolerance, progress=not args.quiet, scene_file=args.scene,
-                  flush_every=args.flush_every)
+                  flush_every=args.flush_every, newton_iterations=args.newton_iterations,
+                  newton_tolerance=args.newton_tolerance)
     except WarpsoftError as exc:
         print(f"warpsoft: error: {exc}", file=sys.stderr)
         return 2

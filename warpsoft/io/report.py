@@ -120,6 +120,13 @@ class RunReport:
                 "residuals": [s.cg_residual for s in self.steps],
                 "converged": [s.converged for s in self.steps],
             },
+            "newton": {
+                "tolerance": sim.newton.tolerance,
+                "max_iterations": sim.newton.max_iterations,
+                "iterations": [s.newton_iterations for s in self.steps],
+                "residuals": [s.newton_residual for s in self.steps],
+                "line_searches": [s.line_searches for s in self.steps],
+            },
             "inverted_elements": [s.inverted_elements for s in self.steps],
             "stages_run": stage_names,
             "timings": {

@@ -150,8 +150,10 @@ def stop_on_signals():
 
 def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: str | Path | None = None,
         report: str | Path | None = None, solver: str = "auto", tolerance: float = 1e-6, progress: bool = False,
-        scene_file: str | None = None, flush_every: int = 50) -> RunReport:
+        scene_file: str | None = None, flush_every: int = 50, newton_iterations: int = 10,
+        newton_tolerance: float = 0.1) -> RunReport:
     """Simulate ``steps`` steps (the scene's default if None), optionally writing USD and a JSON report.
+    ``newton_iterations`` and ``newton_tolerance`` are the :class:`Simulator`'s.
 
     Outputs are checked before anything runs, and written as the run goes (every
     ``flush_every`` steps and at its end), so a run that fails, is interrupted (SIGINT, SIGTERM) or
@@ -167,9 +169,11 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
     report = check_output(report, "report")
     usd = check_output(usd, "USD output", (".usda", ".usdc", ".usd"))
     check_device(device)
-    sim = Simulator(scene, device=device, solver=solver, tolerance=tolerance)
+    sim = Simulator(scene, device=device, solver=solver, tolerance=tolerance, newton_iterations=newton_iterations,
+                    newton_tolerance=newton_tolerance)
     rep = RunReport(sim, scene_file=scene_file, params=scene.params, params_used=getattr(scene, "params_used", None),
-                    options={"solver": solver, "tolerance": tolerance, "steps": steps})
+                    options={"solver": solver, "tolerance": tolerance, "steps": steps,
+                             "newton_iterations": newton_iterations, "newton_tolerance": newton_tolerance})
     writer = None
     if usd is not None:
         from .usd import UsdWriter

@@ -1,0 +1,145 @@
+"""Kernels of the implicit step's Newton iterations (see ``warpsoft/newton.py``).
+
+Iteration ``k`` linearizes at ``q_k = q0 + dx_k`` and solves ``A_k e = r_k`` for the correction,
+where ``r_k`` is the step's out-of-balance at ``dx_k`` without the rows' forces:
+
+    r(dx) = P( c_v M v0 + c_f (f_int(q0 + dx) + f_ext) - mass_scale M dx - c_d K dx )
+
+with ``(c_v, c_f) = (h, h^2)`` in a dynamic step (kg m), ``(0, 1)`` quasi-static (N), and
+``c_d = h b`` the Rayleigh stiffness damping (0 quasi-static). At ``dx = 0`` it is the step's
+usual right-hand side. The nonlinear residual adds the rows' forces, ``R = r + s H^T lambda``.
+"""
+
+import warp as wp
+
+from .linear.pcg import block_add, block_world, node_add
+
+SLOPE = wp.constant(0)  # sums[0, w, SLOPE]: R . e, e the iteration's correction
+NUM_SUMS = 1
+
+
+@wp.kernel
+def residual(
+    v0: wp.array(dtype=wp.vec3d),
+    mass: wp.array(dtype=wp.float64),
+    f_int: wp.array(dtype=wp.vec3d),
+    f_ext: wp.array(dtype=wp.vec3d),
+    kdx: wp.array(dtype=wp.vec3d),
+    dx: wp.array(dtype=wp.vec3d),
+    mask: wp.array(dtype=wp.vec3d),
+    c_v: wp.float64,
+    c_f: wp.float64,
+    mass_scale: wp.float64,
+    lam: wp.array(dtype=wp.float64),
+    world_row_start: wp.array(dtype=wp.int32),
+    world_actuators: wp.array(dtype=wp.int32),
+    s: wp.float64,
+    e: wp.array(dtype=wp.vec3d),
+    world: wp.array(dtype=wp.int32),
+    rhs: wp.array2d(dtype=wp.vec3d),
+    sums: wp.array3d(dtype=wp.float64),
+):
+    """``rhs[0] = r(dx)`` (the next solve's right-hand side) and, per world, ``R . e`` where the
+    rows' forces ``H_j^T`` are the actuator columns ``rhs[1 + j]`` at the same positions (``sums``
+    zeroed before). ``kdx`` is ``c_d K dx`` (zero without stiffness damping); ``mass`` is zero in
+    a quasi-static model."""
+    c, blk, lane = wp.tid()
+    i0, i1, w, uniform = block_world(blk, rhs.shape[1], world)
+    re = wp.float64(0.0)
+    i = i0 + lane
+    while i < i1:
+        p = mask[i]
+        wi = world[i]
+        b = wp.cw_mul(p, (c_v * mass[i]) * v0[i] - (mass_scale * mass[i]) * dx[i] + c_f * (f_int[i] + f_ext[i])
+                      - kdx[i])
+        rhs[0, i] = b
+        rows = wp.vec3d()
+        start = world_row_start[wi]
+        for j in range(world_actuators[wi]):
+            rows = rows + lam[start + j] * rhs[1 + j, i]
+        r = b + s * wp.cw_mul(p, rows)
+        re = node_add(uniform, re, wp.dot(r, e[i]), sums, c, wi, SLOPE)
+        i += wp.block_dim()
+    block_add(re, lane, uniform, sums, c, w, SLOPE)
+
+
+@wp.kernel
+def start(v0: wp.array(dtype=wp.vec3d), mass: wp.array(dtype=wp.float64), f_int: wp.array(dtype=wp.vec3d),
+          f_ext: wp.array(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d), c_v: wp.float64, c_f: wp.float64,
+          rhs: wp.array2d(dtype=wp.vec3d)):
+    """``rhs[0] = r(0) = P(c_v M v0 + c_f (f_int + f_ext))``: the step's first right-hand side."""
+    i = wp.tid()
+    rhs[0, i] = wp.cw_mul(mask[i], (c_v * mass[i]) * v0[i] + c_f * (f_int[i] + f_ext[i]))
+
+
+@wp.kernel
+def slope(
+    rhs: wp.array2d(dtype=wp.vec3d),
+    mask: wp.array(dtype=wp.vec3d),
+    lam: wp.array(dtype=wp.float64),
+    world_row_start: wp.array(dtype=wp.int32),
+    world_actuators: wp.array(dtype=wp.int32),
+    s: wp.float64,
+    e: wp.array(dtype=wp.vec3d),
+    world: wp.array(dtype=wp.int32),
+    sums: wp.array3d(dtype=wp.float64),
+):
+    """``sums[0, w, SLOPE] = (r + s H^T lambda) . e`` at the iteration's linearization (``rhs``:
+    its right-hand side and columns), ``lambda`` the resolve's: ``e . A e``, the energy of the
+    correction, which ``R . e`` after the step is measured against (``sums`` zeroed before)."""
+    c, blk, lane = wp.tid()
+    i0, i1, w, uniform = block_world(blk, rhs.shape[1], world)
+    re = wp.float64(0.0)
+    i = i0 + lane
+    while i < i1:
+        wi = world[i]
+        f = rhs[0, i]
+        start = world_row_start[wi]
+        for j in range(world_actuators[wi]):
+            f = f + (s * lam[start + j]) * rhs[1 + j, i]
+        re = node_add(uniform, re, wp.dot(wp.cw_mul(mask[i], f), e[i]), sums, c, wi, SLOPE)
+        i += wp.block_dim()
+    block_add(re, lane, uniform, sums, c, w, SLOPE)
+
+
+@wp.kernel
+def update(q0: wp.array(dtype=wp.vec3d), dx_base: wp.array(dtype=wp.vec3d), e: wp.array(dtype=wp.vec3d),
+           alpha: wp.array(dtype=wp.float64), world: wp.array(dtype=wp.int32), inv_h: wp.float64,
+           dx: wp.array(dtype=wp.vec3d), q: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d)):
+    """``dx = dx_base + alpha_w e``, ``q = q0 + dx``, ``v = dx / h`` (``inv_h = 0`` quasi-static)."""
+    i = wp.tid()
+    d = dx_base[i] + alpha[world[i]] * e[i]
+    dx[i] = d
+    q[i] = q0[i] + d
+    v[i] = inv_h * d
+
+
+@wp.kernel
+def blend_multipliers(base: wp.array(dtype=wp.float64), full: wp.array(dtype=wp.float64),
+                      alpha: wp.array(dtype=wp.float64), row_world: wp.array(dtype=wp.int32),
+                      lam: wp.array(dtype=wp.float64)):
+    """``lam = base + alpha_w (full - base)``: the multipliers along the same fraction of the step."""
+    r = wp.tid()
+    a = alpha[row_world[r]]
+    lam[r] = base[r] + a * (full[r] - base[r])
+
+
+@wp.kernel
+def hold_done_worlds(alpha: wp.array(dtype=wp.float64), world: wp.array(dtype=wp.int32),
+                     rhs: wp.array2d(dtype=wp.vec3d), x: wp.array2d(dtype=wp.vec3d)):
+    """A world done iterating (``alpha = 0``) needs no correction: its right-hand side and start
+    are 0, which its CG columns take as solved at once."""
+    i = wp.tid()
+    if alpha[world[i]] == wp.float64(0.0):
+        rhs[0, i] = wp.vec3d()
+        x[0, i] = wp.vec3d()
+
+
+@wp.kernel
+def moved(q: wp.array(dtype=wp.vec3d), q_lin: wp.array(dtype=wp.vec3d), flag: wp.array(dtype=wp.int32)):
+    """``flag[0] = 1`` when some node of ``q`` is not where the last linearization was made
+    (``flag`` zeroed before): the state was changed from outside the step."""
+    i = wp.tid()
+    a, b = q[i], q_lin[i]
+    if not (a[0] == b[0] and a[1] == b[1] and a[2] == b[2]):  # NaN differs from everything
+        flag[0] = 1

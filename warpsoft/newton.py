@@ -1,0 +1,234 @@
+"""Newton iterations of the implicit step, with a line search, each world judged on its own.
+
+One linearization per step is what most steps need: the step then costs what it always did,
+plus one residual check. Where it is not enough (a time step large against the body's motion:
+the finger at ``dt = 0.5 s`` flipped between two shapes every step), the step iterates:
+
+- iteration ``k`` linearizes everything at ``q_k = q0 + dx_k`` (element rotations and forces,
+  rows, preconditioner) and solves for the correction ``e`` from the out-of-balance ``r(dx_k)``
+  (``kernels/newton.py``), the rows resolved anew at ``q_k`` (Gauss-Seidel or QP; the actuators'
+  per-step limits still count from the step's start): ``A e = r + s H^T lambda``;
+- ``dx_{k+1} = dx_k + alpha e`` and ``lambda = lambda_k + alpha (lambda_new - lambda_k)``;
+- the residual is measured along the correction: ``eta = R(q_{k+1}) . e / (e . A e)``. The step
+  minimizes an energy (inertia, elastic, loads, rows: corotational elasticity is hyperelastic),
+  whose slope along ``e`` is ``-R . e``: ``eta`` is 1 before the step, 0 at the minimum along
+  ``e``, negative past it. A force norm would not do: second-order stretching of a bending
+  beam leaves forces as large as the load itself for a motion error a millionth of the step;
+- ``eta`` is scale-free (it measures the tangent's error along ``e``, and stays the same while a
+  slowly converging iteration shrinks ``e``): the error left is ``|eta|`` times the size of ``e``
+  relative to the step's first correction (in the energy norm ``sqrt(e . A e)``; at least that
+  of a strain of ``FLOOR_STRAIN`` throughout the body, so that a step that hardly moves is not
+  iterated for nothing). A world is done when a full step leaves an error ``<= tolerance``;
+  its later iterations leave it in place (``alpha = 0``), its solve column 0;
+- line search: a world that overshot (``eta < -1/2``: its energy rises again before the full
+  step) retries with ``alpha`` where the slope, interpolated linearly, vanishes;
+- inverse-model worlds solve their QP again at each iteration's linearization (the step ends
+  where the mechanics and the QP agree); a QP whose active set switches between iterations may
+  keep a step from converging: it then warns.
+
+The linearization made at the end of a step is the next step's (a device check makes it again
+if the state was changed from outside), so a step that converges at once adds only two node
+passes (the slope before and after) and, with stiffness damping, one stiffness product.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import warp as wp
+
+from warpsoft.kernels import newton as kernels
+from warpsoft.kernels.linear.pcg import launch_nodes
+
+from .errors import SceneError
+
+if TYPE_CHECKING:
+    from .simulator import Simulator
+
+OVERSHOOT = 0.5  # eta below -OVERSHOOT: the step went past the minimum along it; the line search shortens it
+FLOOR_STRAIN = 1e-5  # corrections are judged against at least the energy of this strain throughout the body
+
+
+class Newton:
+    """The step's Newton state: buffers on the device, each world's judgement on the host.
+
+    Args:
+        sim: the simulator (its model, rows, multipliers and linearization buffers).
+        iterations: most linearizations per step (1: v1's single linearization, never iterate).
+        tolerance: the error a world's full step must leave (see the module doc).
+        backtracks: most line-search retries per iteration (0: no line search).
+    """
+
+    def __init__(self, sim: Simulator, iterations: int = 10, tolerance: float = 0.1, backtracks: int = 4):
+        if int(iterations) < 1:
+            raise SceneError(f"Simulator: newton_iterations must be >= 1, got {iterations!r}")
+        if not (0.0 < float(tolerance) < 1.0):
+            raise SceneError(f"Simulator: newton_tolerance must lie in (0, 1), got {tolerance!r}")
+        if int(backtracks) < 0:
+            raise SceneError(f"Simulator: line_search must be >= 0 retries, got {backtracks!r}")
+        m, d = sim.model, sim.model.device
+        self.sim, self.max_iterations = sim, int(iterations)
+        self.tolerance = float(tolerance)
+        self.backtracks = int(backtracks) if self.max_iterations > 1 else 0  # one linearization: its full step
+        n, worlds = m.num_nodes, m.num_worlds
+        h = m.dt
+        self.c_v, self.c_f = (0.0, 1.0) if m.static else (h, h * h)
+        self.c_d = sim.stiffness_scale - self.c_f  # Rayleigh stiffness damping h b (0 quasi-static)
+        self.dx_base = wp.zeros(n, dtype=wp.vec3d, device=d)  # dx_k (m)
+        self.dx = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # dx_k + alpha e: the step so far (m)
+        self.kdx = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # c_d K dx
+        self.warm = wp.zeros(n, dtype=wp.vec3d, device=d)  # the first solve's motion, kept while the step iterates
+        # where the last linearization was made (m); none yet (NaN differs from every position)
+        self.q_lin = wp.array(np.full((n, 3), np.nan), dtype=wp.vec3d, device=d)
+        self.moved = wp.zeros(1, dtype=wp.int32, device=d)  # set when the step must linearize first
+        self.sums = wp.zeros((1, worlds, kernels.NUM_SUMS), dtype=wp.float64, device=d)  # R . e after the step
+        self.slope0 = wp.zeros((1, worlds, kernels.NUM_SUMS), dtype=wp.float64, device=d)  # e . A e before it
+        # the least e . A e a world's corrections are measured against (J times c_f: the strain
+        # energy of FLOOR_STRAIN throughout its body): a step that hardly moves is not iterated for
+        # errors far below that
+        young = (m.mu.numpy() * (3 * m.lam.numpy() + 2 * m.mu.numpy()) / (m.lam.numpy() + m.mu.numpy()))
+        energy = np.bincount(m.elem_world_np, young * m.volume.numpy(), minlength=worlds)
+        self.floor = self.c_f * energy * FLOOR_STRAIN ** 2
+        self.alpha_host = np.ones(worlds)
+        self.alpha = wp.array(self.alpha_host, dtype=wp.float64, device=d)
+        self.mass = m.mass if m.mass is not None else wp.zeros(n, dtype=wp.float64, device=d)
+        rows = sim.rows
+        if rows is not None and rows.num_actuators:
+            self.lam_base = wp.zeros(rows.num_rows, dtype=wp.float64, device=d)
+            self.lam_full = wp.zeros(rows.num_rows, dtype=wp.float64, device=d)
+            self.row_world = wp.array(np.repeat(np.arange(worlds), np.diff(rows.world_row_start)), dtype=wp.int32,
+                                      device=d)
+            self.delta_start = wp.zeros(rows.num_rows, dtype=wp.float64, device=d)  # rows at the step's start
+            self._rows = (sim.gauss_seidel.lam, rows.world_row_start_d, rows.world_actuators_d)
+        else:
+            self._rows = (wp.zeros(1, dtype=wp.float64, device=d), wp.zeros(worlds + 1, dtype=wp.int32, device=d),
+                          wp.zeros(worlds, dtype=wp.int32, device=d))
+        self._reset_host()
+
+    # ---- device work (captured in the step's graphs) --------------------------------------
+    def linearize_if_moved(self, q: wp.array, linearize) -> None:
+        """Run ``linearize`` (at ``q``) unless the last linearization was made at ``q`` already."""
+        m = self.sim.model
+        self.moved.zero_()
+        wp.launch(kernels.moved, m.num_nodes, inputs=[q, self.q_lin], outputs=[self.moved], device=m.device)
+        wp.capture_if(self.moved, on_true=linearize)
+
+    def linearized_at(self, q: wp.array) -> None:
+        """Remember that the element rotations, forces and preconditioner are those of ``q``."""
+        wp.copy(self.q_lin, q)
+
+    def start(self) -> None:
+        """The step so far is nothing: ``dx = 0``; the first solve's right-hand side ``r(0)``."""
+        sim, m = self.sim, self.sim.model
+        self.dx.zero_()
+        wp.launch(kernels.start, m.num_nodes, inputs=[sim.state.v, self.mass, sim.f_int, sim.f_ext, m.mask, self.c_v,
+                                                       self.c_f], outputs=[sim.rhs], device=m.device)
+
+    def hold_done_worlds(self) -> None:
+        """Worlds done iterating get no correction (their first solve column is 0)."""
+        m = self.sim.model
+        wp.launch(kernels.hold_done_worlds, m.num_nodes, inputs=[self.alpha, m.node_world],
+                  outputs=[self.sim.rhs, self.sim.sol], device=m.device)
+
+    def accept(self, actuated: bool) -> None:
+        """An iteration begins from the step so far and its multipliers."""
+        wp.copy(self.dx_base, self.dx[0])
+        if actuated:
+            wp.copy(self.lam_base, self.sim.gauss_seidel.lam)
+
+    def advance(self, e: wp.array, actuated: bool, retry: bool = False) -> None:
+        """``dx = dx_k + alpha e``, the positions and velocities it gives (``next``), and the
+        multipliers along the same fraction (the resolve's kept in ``lam_full``); ``retry``: the
+        same correction along new fractions (the line search)."""
+        sim, m = self.sim, self.sim.model
+        lam, starts, counts = self._rows
+        if not retry:  # e . A e = (r + s H^T lambda) . e, at this iteration's linearization
+            self.slope0.zero_()
+            launch_nodes(kernels.slope, 1, m.num_nodes, [sim.rhs, m.mask, lam, starts, counts, sim.constraint_scale,
+                                                         e, m.node_world, self.slope0], m.device)
+        if actuated and not retry:
+            wp.copy(self.lam_full, sim.gauss_seidel.lam)
+        if actuated:
+            wp.launch(kernels.blend_multipliers, sim.rows.num_rows,
+                      inputs=[self.lam_base, self.lam_full, self.alpha, self.row_world],
+                      outputs=[sim.gauss_seidel.lam], device=m.device)
+        wp.launch(kernels.update, m.num_nodes,
+                  inputs=[sim.state.q, self.dx_base, e, self.alpha, m.node_world, 0.0 if m.static else 1.0 / m.dt],
+                  outputs=[self.dx[0], sim.next.q, sim.next.v], device=m.device)
+
+    def residual(self, e: wp.array) -> None:
+        """The out-of-balance ``r(dx)`` (the next solve's right-hand side, ``rhs[0]``) and ``R . e``
+        (``sums``), at the current linearization (forces, rows' columns)."""
+        sim, m = self.sim, self.sim.model
+        if self.c_d != 0.0:
+            self.kdx.zero_()
+            sim.elastic.apply(self.dx, self.kdx, sim.rot, self.c_d)
+        self.sums.zero_()
+        lam, starts, counts = self._rows
+        launch_nodes(kernels.residual, 1, m.num_nodes,
+                     [sim.state.v, self.mass, sim.f_int, sim.f_ext, self.kdx[0], self.dx[0], m.mask, self.c_v,
+                      self.c_f, sim.mass_scale, lam, starts, counts, sim.constraint_scale, e, m.node_world, sim.rhs,
+                      self.sums], m.device)
+
+    # ---- host judgement -------------------------------------------------------------------
+    def _reset_host(self) -> None:
+        worlds = self.sim.model.num_worlds
+        self.done = np.zeros(worlds, dtype=bool)
+        self.eta = np.zeros(worlds)  # R . e / e . A e after each world's last accepted step
+        self.error = np.zeros(worlds)  # |eta| |e|_A / |e_0|_A: what is left, relative to the step's first correction
+        self.energy0 = np.zeros(worlds)  # e . A e of each world's first correction (at least the floor)
+        self.trials_left = np.full(worlds, self.backtracks)
+        self.iterations = np.zeros(worlds, dtype=int)
+        self.trials, self.accepted = 0, 0
+
+    def begin_step(self) -> None:
+        """Before a step: every world takes full steps again."""
+        if self.accepted != 1 or self.trials:  # (after a step of one full iteration, all is as it should be)
+            self._reset_host()
+            self._set_alpha(np.ones_like(self.alpha_host))
+        else:
+            self.done[:] = False
+            self.iterations[:] = 0
+            self.accepted = 0
+
+    def _set_alpha(self, alpha: np.ndarray) -> None:
+        if not np.array_equal(alpha, self.alpha_host):  # uploads only when it changes
+            self.alpha_host = alpha.copy()
+            self.alpha.assign(self.alpha_host)
+
+    def judge(self, host: dict[str, np.ndarray]) -> bool:
+        """After an iteration or a line-search trial was read: True when some world overshot and
+        must retry along a shorter ``alpha`` (set for it)."""
+        g, g0 = host["newton"][0, :, kernels.SLOPE], host["newton_slope"][0, :, kernels.SLOPE]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            eta = np.where(g0 > 0.0, g / g0, 0.0)
+        energy0 = np.maximum(g0, self.floor) if self.accepted == 0 else self.energy0
+        # the next correction along e is about eta e: relative to the step's first (or to the
+        # floor, for a step that hardly moves), it is what is left
+        error = np.abs(eta) * np.sqrt(np.maximum(g0, 0.0) / energy0)
+        over = (eta < -OVERSHOOT) & (error > self.tolerance) & (self.trials_left > 0) & ~self.done
+        if over.any():
+            alpha = self.alpha_host.copy()
+            # the slope, linear between g0 at 0 and g at alpha, vanishes at alpha / (1 - eta)
+            alpha[over] = np.maximum(alpha[over] / (1.0 - eta[over]), 0.1 * alpha[over])
+            self.trials_left[over] -= 1
+            self.trials += 1
+            self._set_alpha(alpha)
+            return True
+        moving = ~self.done
+        self.energy0, self.accepted = energy0, self.accepted + 1
+        self.eta[moving], self.error[moving] = eta[moving], error[moving]
+        self.iterations[moving] += 1
+        return False
+
+    def go_on(self) -> bool:
+        """After an iteration was accepted: whether another is due (some world's full step left an
+        error above the tolerance, or its step was shortened, and the cap is not reached); if so,
+        the done worlds stay where they are."""
+        self.done |= (self.alpha_host == 1.0) & (self.error <= self.tolerance)
+        if self.accepted >= self.max_iterations or self.done.all():
+            return False
+        self.trials_left[:] = self.backtracks
+        self._set_alpha(np.where(self.done, 0.0, 1.0))
+        return True
