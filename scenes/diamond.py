@@ -50,7 +50,7 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
     scene = ws.Scene("diamond", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=100)
     body = scene.add_body("diamond", tets, ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
-    scene.fix(body, ws.Box((-0.015, -0.015, -0.04), (0.015, 0.015, base_top)))  # SoftRobots' base box
+    scene.fix(body, ws.InBox((-0.015, -0.015, -0.04), (0.015, 0.015, base_top)))  # SoftRobots' base box
     step = max_cable_step if mode == "inverse" else math.inf
     for i, (c, d, pull) in enumerate(zip(corners, cable_displacements, pulls, strict=True)):
         scene.add_cable(f"cable{i}", body, points=[tuple(c)], pull_point=tuple(pull), mode="displacement",

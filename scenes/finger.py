@@ -22,7 +22,7 @@ def build(length=0.085, height=0.02, width=0.015, notches=3, notch_depth=0.006, 
     finger = scene.add_body("finger", ws.mesh_shape(shape, mesh_size, name="finger"),
                             ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
-    scene.fix(finger, ws.Box((-0.1 * length, -1.0, -1.0), (0.0, 1.0, 1.0)))  # base clamp
+    scene.fix(finger, ws.InBox((-0.1 * length, -1.0, -1.0), (0.0, 1.0, 1.0)))  # base clamp
     z = height - notch_depth - 0.25 * (height - notch_depth)  # under the notches, near the top
     path = [(-length * k / 10, width / 2, z) for k in range(1, 10)] + [(-length + 0.003, width / 2, z)]
     scene.add_cable("cable", finger, points=path, pull_point=(0.01, width / 2, z), mode="displacement",

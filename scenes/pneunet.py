@@ -20,19 +20,19 @@ def build(length=0.115, width=0.02, height=0.02, chambers=6, gap=0.002, wall=0.0
     lo_channel, hi_channel = 0.25 * floor, 0.6 * floor  # the channel runs inside the floor
     channel = ((x_first, width / 2 - 0.0015, lo_channel), (x_last, width / 2 + 0.0015, hi_channel))
     voids = Box(channel[0], tuple(b - a for a, b in zip(*channel, strict=True)))
-    cavity = ws.Box(*channel, tol=eps)
+    cavity = ws.InBox(*channel, tol=eps)
     for k in range(chambers):
         x0 = base + gap + k * pitch
         solid = solid + Box((x0, 0.0, floor), (pitch - gap, width, height - floor))
         inner = ((x0 + wall, wall, 0.5 * floor), (x0 + pitch - gap - wall, width - wall, height - wall))
         voids = voids + Box(inner[0], tuple(b - a for a, b in zip(*inner, strict=True)))
-        cavity = cavity | ws.Box(*inner, tol=eps)
+        cavity = cavity | ws.InBox(*inner, tol=eps)
     shape = solid - voids
     scene = ws.Scene("pneunet", gravity=(0.0, 0.0, -gravity), dt=dt, steps=100)
     bar = scene.add_body("pneunet", ws.mesh_shape(shape, mesh_size, name="pneunet"),
                          ws.Material(young_modulus, poisson_ratio, density))
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
-    scene.fix(bar, ws.Box((-1.0, -1.0, -1.0), (0.2 * base, 1.0, 1.0)))
+    scene.fix(bar, ws.InBox((-1.0, -1.0, -1.0), (0.2 * base, 1.0, 1.0)))
     scene.add_cavity("chambers", bar, region=cavity, mode="pressure",
                      value=lambda t: pressure * min(t / ramp_time, 1.0))
     scene.add_effector("tip", (length, width / 2, floor / 2))

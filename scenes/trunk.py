@@ -24,7 +24,7 @@ def build(length=0.195, base_radius=0.013, tip_radius=0.005, young_modulus=450e3
     trunk = scene.add_body("trunk", ws.mesh_shape(shape, mesh_size, name="trunk"),
                            ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
-    scene.fix(trunk, ws.Box((-0.001, -0.02, -0.02), (0.02, 0.02, 0.02)))  # SoftRobots' 20 mm base box
+    scene.fix(trunk, ws.InBox((-0.001, -0.02, -0.02), (0.02, 0.02, 0.02)))  # SoftRobots' 20 mm base box
 
     def radius(x):
         return base_radius + (tip_radius - base_radius) * x / length

@@ -34,10 +34,10 @@ def grid_cantilever(static=True, gravity=0.0, load=None, E=1e6, dt=0.01, divisio
     scene = ws.Scene("beam", gravity=(0, 0, -gravity), static=static, dt=dt)
     beam = scene.add_body("beam", ws.box_grid((0, -h / 2, -h / 2), (L, h / 2, h / 2), divisions),
                           ws.Material(E, 0.3, 1000.0))
-    scene.fix(beam, ws.Plane((0, 0, 0), (1, 0, 0)))
+    scene.fix(beam, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     scene.set_damping(*damping)
     if load is not None:
-        scene.add_force(beam, ws.Plane((L, 0, 0), (1, 0, 0)), load)
+        scene.add_force(beam, ws.OnPlane((L, 0, 0), (1, 0, 0)), load)
     for k in range(11):
         scene.add_probe(f"c{k}", (k * L / 10, 0, 0))
     return scene

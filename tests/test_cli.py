@@ -118,14 +118,14 @@ def build(fail_at=0.045):
     """A beam under a load whose function fails at ``fail_at`` s (the scene's own bug)."""
     scene = ws.Scene("beam", dt=0.01)
     body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.05, 0.01, 0.01), (5, 1, 1)), ws.Material(1e5, 0.3))
-    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+    scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
 
     def load(t):
         if t > fail_at:
             raise ZeroDivisionError("my bad")
         return (0.0, 0.0, -0.01 * t)
 
-    scene.add_force(body, ws.Plane((0.05, 0, 0), (1, 0, 0)), load)
+    scene.add_force(body, ws.OnPlane((0.05, 0, 0), (1, 0, 0)), load)
     scene.add_probe("tip", (0.05, 0.005, 0.005))
     return scene
 '''

@@ -14,7 +14,7 @@ MAT = ws.Material(1e6, 0.3, 1000.0)
 def beam(static=True, divisions=(20, 2, 2)):
     scene = ws.Scene("beam", static=static, dt=0.01)
     body = scene.add_body("beam", ws.box_grid((0, -H / 2, -H / 2), (L, H / 2, H / 2), divisions), MAT)
-    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+    scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     return scene, body
 
 
@@ -97,7 +97,7 @@ def test_displacement_bounds_and_step_limit_bind():
 
 def test_pushed_cable_stays_slack():
     scene, body = beam()
-    scene.add_force(body, ws.Plane((L, 0, 0), (1, 0, 0)), (-0.5, 0, 0))  # the tip moves toward the pull point
+    scene.add_force(body, ws.OnPlane((L, 0, 0), (1, 0, 0)), (-0.5, 0, 0))  # the tip moves toward the pull point
     scene.add_cable("cable", body, points=[(L, 0, 0)], pull_point=(-0.02, 0, 0), value=0.0)
     sim, stats = run(scene, 3, tolerance=1e-10)
     assert stats.actuator_lambda["cable"] == 0.0  # it cannot push back
@@ -210,7 +210,7 @@ def test_open_or_misoriented_cavity_is_a_clear_error(scene_module):
     sphere = scene_module("scenes/validation/pressure_sphere.py")
     scene = sphere.build(mesh_size=0.004)
     shell = scene.bodies[0]
-    region = ws.Sphere((0, 0, 0), 0.01, tol=1e-8)
+    region = ws.InSphere((0, 0, 0), 0.01, tol=1e-8)
     with pytest.raises(ws.SceneError, match=r"cavity 'open': the surface is open"):
         scene.add_cavity("open", shell, region=region)  # no symmetry planes given: open along them
     tris = scene.cavities[0].surface()

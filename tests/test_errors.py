@@ -10,7 +10,7 @@ import warpsoft as ws
 
 MESH = ws.box_grid((0, 0, 0), (0.04, 0.01, 0.01), (4, 1, 1))
 MAT = ws.Material(1e5, 0.3, 1000.0)
-CLAMP = ws.Plane((0, 0, 0), (1, 0, 0))
+CLAMP = ws.OnPlane((0, 0, 0), (1, 0, 0))
 
 
 @pytest.mark.parametrize("kw,match", [
@@ -38,8 +38,8 @@ def test_quasi_static_body_without_fixture_is_singular():
 
 
 @pytest.mark.parametrize("held, free", [
-    (ws.Box((-1e-6, -1e-6, -1e-6), (1e-6, 1e-6, 1e-6)), 3),  # one corner node: rotations about it
-    (ws.Box((-1e-6, -1e-6, -1), (1e-6, 1e-6, 1)), 1),  # one edge: rotation about it
+    (ws.InBox((-1e-6, -1e-6, -1e-6), (1e-6, 1e-6, 1e-6)), 3),  # one corner node: rotations about it
+    (ws.InBox((-1e-6, -1e-6, -1), (1e-6, 1e-6, 1)), 1),  # one edge: rotation about it
 ])
 def test_quasi_static_body_held_at_a_node_or_an_edge_is_singular(held, free):
     """Held at one node (or along one line of nodes), a static body still turns freely about it:
@@ -57,12 +57,12 @@ def test_quasi_static_body_held_at_a_node_or_an_edge_is_singular(held, free):
 def test_bad_scene_components_are_named():
     scene = ws.Scene("s", static=True)
     body = scene.add_body("beam", MESH, MAT)
-    with pytest.raises(ws.SceneError, match=r"body 'beam': fixed region Box.* selects no node"):
-        scene.fix(body, ws.Box((1, 1, 1), (2, 2, 2)))
+    with pytest.raises(ws.SceneError, match=r"body 'beam': fixed region InBox.* selects no node"):
+        scene.fix(body, ws.InBox((1, 1, 1), (2, 2, 2)))
     with pytest.raises(ws.SceneError, match=r"fix axes .* got 'xw'"):
         scene.fix(body, CLAMP, axes="xw")
     with pytest.raises(ws.SceneError, match=r"load 'push'.*no surface triangle"):
-        scene.add_force(body, ws.Box((1, 1, 1), (2, 2, 2)), (1, 0, 0), name="push")
+        scene.add_force(body, ws.InBox((1, 1, 1), (2, 2, 2)), (1, 0, 0), name="push")
     with pytest.raises(ws.SceneError, match=r"load 'nan': total force must be finite"):
         scene.add_force(body, CLAMP, (math.nan, 0, 0), name="nan")
     with pytest.raises(ws.SceneError, match=r"gravity must be finite"):
@@ -83,7 +83,7 @@ def test_time_dependent_load_returning_nan_is_named():
     scene = ws.Scene("s", static=True)
     body = scene.add_body("beam", MESH, MAT)
     scene.fix(body, CLAMP)
-    scene.add_force(body, ws.Plane((0.04, 0, 0), (1, 0, 0)), lambda t: (0.0, math.nan, 0.0), name="bad")
+    scene.add_force(body, ws.OnPlane((0.04, 0, 0), (1, 0, 0)), lambda t: (0.0, math.nan, 0.0), name="bad")
     sim = ws.Simulator(scene)
     with pytest.raises(ws.SceneError, match=r"load 'bad': total\(0.01\) must return 3 finite numbers"):
         sim.step()
@@ -108,7 +108,7 @@ def test_cg_that_does_not_converge_is_reported():
     scene = ws.Scene("s", static=True)
     body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), MAT)
     scene.fix(body, CLAMP)
-    scene.add_force(body, ws.Plane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.01))
+    scene.add_force(body, ws.OnPlane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.01))
     sim = ws.Simulator(scene, solver="jacobi", max_iterations=5)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -125,7 +125,7 @@ def test_a_nearly_incompressible_body_that_stops_cg_is_named_as_such():
     scene = ws.Scene("s", static=True)
     body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), ws.Material(1e5, 0.49))
     scene.fix(body, CLAMP)
-    scene.add_force(body, ws.Plane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.01))
+    scene.add_force(body, ws.OnPlane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.01))
     with pytest.warns(ws.ConvergenceWarning, match=r"nearly incompressible \(Poisson ratio up to 0.49\).*lock.*"
                                                    r"use solver='pcg'"):
         ws.Simulator(scene, solver="jacobi", max_iterations=20).step()
@@ -146,7 +146,7 @@ def test_a_finite_but_absurd_load_is_rejected_and_the_state_kept():
     scene = ws.Scene("absurd", dt=0.01)
     body = scene.add_body("beam", MESH, MAT)
     scene.fix(body, CLAMP)
-    scene.add_force(body, ws.Plane((0.04, 0, 0), (1, 0, 0)), lambda t: (0.0, 0.0, -1e300 if t > 0.045 else -0.01))
+    scene.add_force(body, ws.OnPlane((0.04, 0, 0), (1, 0, 0)), lambda t: (0.0, 0.0, -1e300 if t > 0.045 else -0.01))
     sim = ws.Simulator(scene, solver="direct")
     for _ in range(4):
         sim.step()
@@ -157,8 +157,8 @@ def test_a_finite_but_absurd_load_is_rejected_and_the_state_kept():
 
 
 def test_a_shape_given_as_a_region_and_a_region_given_as_a_shape_say_which_is_which():
-    """ws.Box is a region while ws.Cylinder and ws.Ball are shapes (the solid box is
-    ws.shapes.Box): mixing them up was a TypeError ('object is not callable')."""
+    """Regions say where nodes are (ws.InBox, ws.OnPlane, ...), shapes are solids (ws.shapes.Box,
+    ws.Cylinder, ...): mixing them up was a TypeError ('object is not callable')."""
     scene = ws.Scene("s", static=True)
     body = scene.add_body("beam", MESH, MAT)
     with pytest.raises(ws.SceneError, match=r"fixed region must be a region .* got Cylinder: ws.Cylinder is a "
@@ -166,7 +166,23 @@ def test_a_shape_given_as_a_region_and_a_region_given_as_a_shape_say_which_is_wh
         scene.fix(body, ws.Cylinder((0, 0, 0), (0, 0, 0.01), 0.005))
     with pytest.raises(ws.SceneError, match=r"load 'push': region must be a region .* got str"):
         scene.add_force(body, "the tip", (0, 0, -1), name="push")
-    with pytest.raises(ws.SceneError, match=r"expected a Shape, got Box: ws.Box is a region .* ws.shapes.Box"):
-        ws.mesh_shape(ws.Box((0, 0, 0), (1, 1, 1)), 0.1)
+    with pytest.raises(ws.SceneError, match=r"expected a Shape, got InBox: ws.InBox is a region .* ws.shapes.Box"):
+        ws.mesh_shape(ws.InBox((0, 0, 0), (1, 1, 1)), 0.1)
     with pytest.raises(ws.SceneError, match=r"got Box: ws.shapes.Box is a solid shape"):
         scene.fix(body, ws.shapes.Box((0, 0, 0), (0.01, 0.01, 0.01)))
+
+
+def test_the_first_region_names_still_work_and_say_their_new_names():
+    """ws.Box was a region while ws.shapes.Box is a solid, and ws.Sphere a region next to the
+    solid ws.Ball: regions are now named by where the nodes are. The first names select the same
+    nodes, with a DeprecationWarning naming the new one."""
+    points = np.random.default_rng(0).uniform(-1.0, 1.0, (200, 3))
+    pairs = [(lambda m: m.Box((-0.5, -0.5, -0.5), (0.5, 0.2, 0.5)), ws.InBox((-0.5, -0.5, -0.5), (0.5, 0.2, 0.5))),
+             (lambda m: m.Plane((0, 0, 0.1), (0, 0, 1), tol=0.2), ws.OnPlane((0, 0, 0.1), (0, 0, 1), tol=0.2)),
+             (lambda m: m.HalfSpace((0, 0, 0), (1, 1, 0)), ws.InHalfSpace((0, 0, 0), (1, 1, 0))),
+             (lambda m: m.Sphere((0, 0.2, 0), 0.6), ws.InSphere((0, 0.2, 0), 0.6))]
+    for old, new in pairs:
+        with pytest.warns(DeprecationWarning, match=f"is now ws.{type(new).__name__}"):
+            region = old(ws)
+        assert isinstance(region, type(new)) and np.array_equal(region(points), new(points))
+        assert 0 < new(points).sum() < len(points)

@@ -20,7 +20,7 @@ def test_patch_test_reproduces_uniform_strain():
     """Boundary nodes placed by a linear field: the interior follows it exactly."""
     scene, body = static_block((4, 3, 3))
     d = np.array([L / 4, W / 3, H / 3]) / 2
-    scene.fix(body, ~ws.Box(d, np.array([L, W, H]) - d))
+    scene.fix(body, ~ws.InBox(d, np.array([L, W, H]) - d))
     sim = ws.Simulator(scene, tolerance=1e-12)
     X = sim.model.rest_np
     G = np.array([[2e-3, 5e-4, -1e-3], [3e-4, -1e-3, 2e-4], [-4e-4, 1e-4, 1.5e-3]])  # strain and small rotation
@@ -35,7 +35,7 @@ def test_patch_test_reproduces_uniform_strain():
 @pytest.mark.parametrize("angle", [5.0, 90.0, 180.0])
 def test_rigid_motion_makes_no_internal_force(angle):
     scene, body = static_block()
-    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+    scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     sim = ws.Simulator(scene)
     X = sim.model.rest_np
     R = ws.rotation_about("z", angle) @ ws.rotation_about("x", 0.7 * angle)
@@ -49,10 +49,10 @@ def test_rigid_motion_makes_no_internal_force(angle):
 def test_axial_bar_matches_FL_over_EA_and_poisson_contraction():
     force = 0.5  # N
     scene, body = static_block((8, 2, 2))
-    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)), axes="x")  # symmetry rollers: pure uniaxial stress
-    scene.fix(body, ws.Plane((0, 0, 0), (0, 1, 0)), axes="y")
-    scene.fix(body, ws.Plane((0, 0, 0), (0, 0, 1)), axes="z")
-    scene.add_force(body, ws.Plane((L, 0, 0), (1, 0, 0)), (force, 0, 0))
+    scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)), axes="x")  # symmetry rollers: pure uniaxial stress
+    scene.fix(body, ws.OnPlane((0, 0, 0), (0, 1, 0)), axes="y")
+    scene.fix(body, ws.OnPlane((0, 0, 0), (0, 0, 1)), axes="z")
+    scene.add_force(body, ws.OnPlane((L, 0, 0), (1, 0, 0)), (force, 0, 0))
     scene.add_probe("end", (L, W / 2, H / 2))
     scene.add_probe("corner", (L, W, H))
     sim = ws.Simulator(scene, tolerance=1e-12)
@@ -66,7 +66,7 @@ def test_axial_bar_matches_FL_over_EA_and_poisson_contraction():
 
 def test_inverted_elements_recover():
     scene, body = static_block((4, 2, 2))
-    scene.fix(body, ws.Plane((0, 0, 0), (0, 0, 1)))
+    scene.fix(body, ws.OnPlane((0, 0, 0), (0, 0, 1)))
     sim = ws.Simulator(scene, tolerance=1e-10)
     X = sim.model.rest_np
     q = X.copy()
@@ -85,7 +85,7 @@ def test_cg_agrees_with_direct_solve():
     for solver in ("direct", "pcg", "jacobi"):
         scene = ws.Scene("sag", gravity=(0, 0, -9.81), dt=0.02)
         body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.08, W, H), (16, 2, 2)), RUBBER)
-        scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+        scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
         scene.set_damping(0.1, 0.01)
         sim = ws.Simulator(scene, solver=solver, tolerance=1e-12)
         for _ in range(3):
@@ -101,7 +101,7 @@ def test_residual_checks_every_k_iterations_give_the_same_solution():
     for k in (1, 7):
         scene = ws.Scene("sag", gravity=(0, 0, -9.81), dt=0.02)
         body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.08, W, H), (16, 2, 2)), RUBBER)
-        scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+        scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
         sim = ws.Simulator(scene, solver="jacobi", tolerance=1e-10, check_every=k)
         stats = sim.step()
         assert stats.converged and stats.cg_iterations > 0 and stats.cg_iterations % k == 0
@@ -116,9 +116,9 @@ def test_stiffness_contrast_of_1e4_between_parts():
     for solver in ("direct", "pcg", "jacobi"):
         scene = ws.Scene("contrast", static=True)
         body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.08, W, H), (16, 2, 2)), RUBBER)
-        body.set_material(ws.Box((0.0, -1, -1), (0.04, 1, 1)), ws.Material(1e4 * RUBBER.young_modulus, 0.3, 1000.0))
-        scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
-        scene.add_force(body, ws.Plane((0.08, 0, 0), (1, 0, 0)), (0, 0, -1e-3))
+        body.set_material(ws.InBox((0.0, -1, -1), (0.04, 1, 1)), ws.Material(1e4 * RUBBER.young_modulus, 0.3, 1000.0))
+        scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
+        scene.add_force(body, ws.OnPlane((0.08, 0, 0), (1, 0, 0)), (0, 0, -1e-3))
         scene.add_probe("joint", (0.04, W / 2, H / 2))
         scene.add_probe("tip", (0.08, W / 2, H / 2))
         sim = ws.Simulator(scene, solver=solver, tolerance=1e-10, max_iterations=20000)

@@ -33,10 +33,10 @@ def test_random_scenes_fail_clearly_or_stay_finite(length, divisions, young, poi
         mesh = ws.box_grid((0, 0, 0), (length, 0.01, 0.01), (divisions, 1, 1))
         body = scene.add_body("beam", mesh, ws.Material(young, poisson, density))
         if clamp == "face":
-            scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
+            scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
         elif clamp == "node":
-            scene.fix(body, ws.Box((-1e-9, -1e-9, -1e-9), (1e-9, 1e-9, 1e-9)))
-        scene.add_force(body, ws.Plane((length, 0, 0), (1, 0, 0)), (0.0, 0.0, force))
+            scene.fix(body, ws.InBox((-1e-9, -1e-9, -1e-9), (1e-9, 1e-9, 1e-9)))
+        scene.add_force(body, ws.OnPlane((length, 0, 0), (1, 0, 0)), (0.0, 0.0, force))
         if cable:
             scene.add_cable("c", body, points=[(0.5 * length, 0.005, 0.009), (length, 0.005, 0.009)],
                             pull_point=(pull, 0.005, 0.009), value=cable_value)

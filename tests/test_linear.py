@@ -14,8 +14,8 @@ RUBBER = ws.Material(1e6, 0.45, 1000.0)
 def bent_beam(static=False):
     scene = ws.Scene("bent", gravity=(0, 0, -9.81), dt=0.02, static=static)
     body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), RUBBER)
-    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))
-    scene.add_force(body, ws.Plane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.2))
+    scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
+    scene.add_force(body, ws.OnPlane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.2))
     return scene
 
 

@@ -107,7 +107,7 @@ def test_softrobots_finger_stl_is_filled_with_tetrahedra_that_step(reference_dir
     assert ws.mesh_surface(reference_dir / "finger.stl", 0.006).num_elements == coarse.num_elements  # from the cache
     scene = ws.Scene("finger", dt=0.01)
     body = scene.add_body("finger", coarse, ws.Material(5e5, 0.45, 1000.0))
-    scene.fix(body, ws.Plane((0, 0, 0), (1, 0, 0)))  # its base, at x = 0
+    scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))  # its base, at x = 0
     sim = ws.Simulator(scene, solver="direct")
     for _ in range(3):
         sim.step()

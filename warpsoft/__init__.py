@@ -39,7 +39,11 @@ from .scene import (  # noqa: E402
     Cone,
     Cylinder,
     HalfSpace,
+    InBox,
+    InHalfSpace,
+    InSphere,
     Material,
+    OnPlane,
     Plane,
     Region,
     Scene,
@@ -61,7 +65,8 @@ from .state import Control, State  # noqa: E402
 __version__ = "0.1.0"
 
 __all__ = [
-    "Ball", "Box", "Cone", "Control", "ConvergenceWarning", "Cylinder", "HalfSpace", "Material", "MeshError", "Model",
+    "Ball", "Box", "Cone", "Control", "ConvergenceWarning", "Cylinder", "HalfSpace", "InBox", "InHalfSpace", "InSphere",
+    "Material", "MeshError", "Model", "OnPlane",
     "Plane", "Region", "Scene", "SceneError", "SimulationError", "Simulator", "Sphere", "State", "StepStats",
     "TetMesh", "UserCodeError", "WarpsoftError", "WorldStats", "box_grid", "finalize", "load_mesh", "mesh_shape",
     "mesh_surface", "regions", "rotation_about", "save_mesh", "shapes", "waypoints",

@@ -233,5 +233,5 @@ def check_held(scene: str, body: BodyInfo, rest: np.ndarray, mask: np.ndarray) -
         held = len(np.unique(node))
         raise SceneError(f"scene '{scene}' is quasi-static and body '{body.name}' is held at {held} node(s): "
                          f"{6 - rank} rigid-body motion(s) stay free, so its stiffness is singular; fix at least "
-                         "three nodes that are not on one line (e.g. a ws.Plane region), or make the scene dynamic")
+                         "three nodes that are not on one line (e.g. a ws.OnPlane region), or make the scene dynamic")
 

@@ -22,7 +22,7 @@ def build(length=0.1, width=0.01, height=0.01, young_modulus=1e6, poisson_ratio=
     scene = ws.Scene("cable_bar", static=True, steps=3)
     bar = scene.add_body("bar", ws.mesh_shape(ws.shapes.Box((0.0, -width / 2, -height / 2), (length, width, height)),
                                               h, name="bar"), ws.Material(young_modulus, poisson_ratio, 1000.0))
-    scene.fix(bar, ws.Plane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9))
+    scene.fix(bar, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9))
     if cable_displacement is not None:
         mode, value = "displacement", cable_displacement
     else:

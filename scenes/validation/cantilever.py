@@ -16,9 +16,9 @@ def build(length=0.1, width=0.01, height=0.01, young_modulus=1e6, poisson_ratio=
     scene = ws.Scene("cantilever", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=1 if static else 100)
     beam = scene.add_body("beam", ws.mesh_shape(shape, h, name="beam"),
                           ws.Material(young_modulus, poisson_ratio, density))
-    scene.fix(beam, ws.Plane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9))
+    scene.fix(beam, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9))
     if tip_force:
-        scene.add_force(beam, ws.Plane((length, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9), (0.0, 0.0, -tip_force),
+        scene.add_force(beam, ws.OnPlane((length, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9), (0.0, 0.0, -tip_force),
                         name="tip_force")
     scene.add_probe("tip", (length, 0.0, 0.0))
     return scene

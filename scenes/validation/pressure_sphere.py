@@ -18,10 +18,10 @@ def build(inner_radius=0.01, outer_radius=0.02, young_modulus=1e5, poisson_ratio
     scene = ws.Scene("pressure_sphere", static=True, steps=3)
     shell = scene.add_body("shell", ws.mesh_shape(shape, h, name="shell"),
                            ws.Material(young_modulus, poisson_ratio, 1000.0))
-    planes = [ws.Plane((0.0, 0.0, 0.0), n, tol=1e-9) for n in ((1, 0, 0), (0, 1, 0), (0, 0, 1))]
+    planes = [ws.OnPlane((0.0, 0.0, 0.0), n, tol=1e-9) for n in ((1, 0, 0), (0, 1, 0), (0, 0, 1))]
     for plane, axis in zip(planes, "xyz", strict=True):
         scene.fix(shell, plane, axes=axis)  # symmetry: no motion across the plane
-    scene.add_cavity("cavity", shell, region=ws.Sphere((0.0, 0.0, 0.0), a, tol=1e-6 * a), mode="pressure",
+    scene.add_cavity("cavity", shell, region=ws.InSphere((0.0, 0.0, 0.0), a, tol=1e-6 * a), mode="pressure",
                      value=pressure, symmetry_planes=planes)
     scene.add_probe("inner", (a, 0.0, 0.0))
     return scene

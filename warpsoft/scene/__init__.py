@@ -12,12 +12,13 @@ from .cavity import Cavity
 from .effector import Effector, waypoints
 from .material import Material
 from .mesh import TetMesh, box_grid, load_mesh, rotation_about, save_mesh
-from .regions import Box, HalfSpace, Plane, Region, Sphere
+from .regions import Box, HalfSpace, InBox, InHalfSpace, InSphere, OnPlane, Plane, Region, Sphere
 from .scene import Body, Fixture, Load, Probe, Scene, load_weights
 from .shapes import Ball, Cone, Cylinder, mesh_shape, mesh_surface
 
 __all__ = [
     "Actuator", "Ball", "Body", "Box", "Cable", "Cavity", "Cone", "Cylinder", "Effector", "Fixture", "HalfSpace",
+    "InBox", "InHalfSpace", "InSphere", "OnPlane",
     "Load", "Material", "Plane", "Probe", "Region", "Scene", "Sphere", "TetMesh", "box_grid", "load_mesh",
     "load_weights", "mesh_shape", "mesh_surface", "regions", "rotation_about", "save_mesh", "shapes", "waypoints",
 ]

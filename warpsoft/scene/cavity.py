@@ -19,7 +19,7 @@ from .actuator import Actuator
 class Cavity(Actuator):
     """A cavity (scene side): the body's boundary triangles inside ``region`` (or explicit
     ``triangles``: body node ids, oriented out of the void) must form a closed surface, or
-    one closed by ``symmetry_planes`` (regions.Plane) of a symmetric model: its open edges
+    one closed by ``symmetry_planes`` (ws.OnPlane) of a symmetric model: its open edges
     must lie on them, and the volume is measured from a point common to them all."""
 
     body: object = None

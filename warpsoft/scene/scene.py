@@ -219,7 +219,7 @@ class Scene:
 
         ``mode="pressure"``: ``value`` is the pressure (Pa); ``mode="volume"``: the volume
         growth (m^3). ``min_pressure < 0`` allows vacuum. In a model cut by symmetry planes
-        (``ws.Plane`` list) the cavity surface may be open along them.
+        (``ws.OnPlane`` list) the cavity surface may be open along them.
         """
         self._own(body, "add_cavity")
         self._new_row_name(name)
