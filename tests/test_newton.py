@@ -65,3 +65,16 @@ def test_newton_options_are_checked(scene_module):
         ws.Simulator(scene, newton_tolerance=0.0)
     with pytest.raises(ws.SceneError, match="line_search must be >= 0"):
         ws.Simulator(scene, line_search=-1)
+
+
+def test_a_preconditioner_due_for_a_refresh_is_refreshed_before_the_solve(scene_module):
+    """The step linearizes at its end for the next one; a preconditioner found stale after a
+    solve is refreshed at the next step's start, so that this step's solve uses it: the warped
+    factorization is then exact, one CG iteration (16 when it was refreshed only after)."""
+    sim = ws.Simulator(scene_module("scenes/finger.py").build(mesh_size=0.006), solver="pcg")
+    history = [sim.step() for _ in range(20)]
+    assert history[-1].cg_iterations > 5
+    refreshes = sim.solver.precond.refreshes
+    sim.solver.precond._stale = True  # as observe() leaves it when the iterations grew
+    stats = sim.step()
+    assert sim.solver.precond.refreshes == refreshes + 1 and stats.cg_iterations == 1

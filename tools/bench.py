@@ -40,6 +40,8 @@ SCENES = [
     ("diamond_inverse_softrobots_mesh", "scenes/diamond.py",  # SoftRobots.Inverse's own mesh: 4884 DOFs
      {"mode": "inverse", "mesh": str(ROOT.parent / "shared" / "reference" / "softrobots" / "diamond.vtk")}),
     ("trunk", "scenes/trunk.py", {}),
+    # the finger at a time step too large for one linearization: what its Newton iterations cost
+    ("finger_dt_0.5", "scenes/finger.py", {"dt": 0.5}),
 ]
 
 # SOFA SoftRobots, Table 1 of Coevoet et al. 2017 (Intel i5-4590, one thread), ms per step
@@ -47,7 +49,8 @@ PAPER_MS = {"diamond_inverse": 22.0, "diamond_inverse_softrobots_mesh": 22.0, "t
 
 # v1 and v2 per device: the solver (and options) each release used by default there
 CONFIGS = {
-    "v1": {"cpu": ("direct", {"factorization": "superlu", "qp": "piqp"}), "cuda": ("jacobi", {"qp": "piqp"})},
+    "v1": {"cpu": ("direct", {"factorization": "superlu", "qp": "piqp", "newton_iterations": 1}),
+           "cuda": ("jacobi", {"qp": "piqp", "newton_iterations": 1})},
     "v2": {"cpu": ("direct", {}), "cuda": ("pcg", {})},
 }
 
@@ -140,6 +143,8 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
         "stages_ms": {k: 1e3 * float(np.median([s.stages.get(k, 0.0) for s in stats])) for k in stages},
         "stages_uncaptured_ms": {k: 1e3 * v for k, v in uncaptured.stages.items()},
         "cg_iterations_median": float(np.median([s.cg_iterations for s in stats])),
+        "newton_iterations": [int(np.median([s.newton_iterations for s in stats])),
+                              int(max(s.newton_iterations for s in stats))],
         "launches_per_step": counter.launches, "host_transfers_per_step": counter.transfers,
         "launch_floor_ms": 1e-3 * LAUNCH_FLOOR_US * counter.launches,
         "peak_device_bytes_per_dof": None if peak is None else peak / m.num_dofs,
@@ -150,16 +155,16 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
 
 def markdown(rows: list[dict]) -> str:
     head = ("| scene | config | model | DOFs | solver | step median (ms) | p90 (ms) | stages, median (ms) "
-            "| stages, one uncaptured step (ms) | CG its | launches / transfers per step | launch floor (ms) "
-            "| bytes/DOF | paper (ms) |")
-    out = [head, "|" + "---|" * 14]
+            "| stages, one uncaptured step (ms) | CG its | Newton its (median / most) "
+            "| launches / transfers per step | launch floor (ms) | bytes/DOF | paper (ms) |")
+    out = [head, "|" + "---|" * 15]
     for r in rows:
         st = ", ".join(f"{k} {v:.2f}" for k, v in r["stages_ms"].items())
         un = ", ".join(f"{k} {v:.2f}" for k, v in r["stages_uncaptured_ms"].items())
         mem = "" if r["peak_device_bytes_per_dof"] is None else f"{r['peak_device_bytes_per_dof']:.0f}"
         out.append(f"| {r['scene']} | {r['config']} | {r['model']} | {r['dofs']} | {r['solver']} | "
                    f"{r['step_ms']['median']:.2f} | {r['step_ms']['p90']:.2f} | {st} | {un} | "
-                   f"{r['cg_iterations_median']:.0f} | "
+                   f"{r['cg_iterations_median']:.0f} | {r['newton_iterations'][0]} / {r['newton_iterations'][1]} | "
                    f"{r['launches_per_step']} / {r['host_transfers_per_step']} | {r['launch_floor_ms']:.2f} | {mem} | "
                    f"{PAPER_MS.get(r['scene'], '')} |")
     by = {(r["scene"], r["config"]): r for r in rows}

@@ -150,8 +150,9 @@ def linearize(sim: Simulator, q: wp.array) -> None:
 
 def begin(sim: Simulator, actuated: bool) -> None:
     """The step's start: the linearization at ``q`` (made by the last step unless the state was
-    changed since), the rows there and, with actuators, their columns ``H_a^T``; the first
-    right-hand side ``b = P(f_int + f_ext)`` (quasi-static) or ``P(h (f_int + f_ext) + M v)``."""
+    changed since, or the preconditioner is due for a refresh), the rows there and, with
+    actuators, their columns ``H_a^T``; the first right-hand side ``b = P(f_int + f_ext)``
+    (quasi-static) or ``P(h (f_int + f_ext) + M v)``."""
     q = sim.state.q
 
     def again() -> None:  # the state changed since the last step linearized it
@@ -160,7 +161,10 @@ def begin(sim: Simulator, actuated: bool) -> None:
             sim.rows.evaluate(q)
             sim.rows.actuator_columns(sim.columns)
 
-    sim.newton.linearize_if_moved(q, again)
+    if getattr(sim.solver, "stale", False):  # its preconditioner is due for a refresh: before this solve
+        again()  # (such a step is not captured: the refresh is host work)
+    else:
+        sim.newton.linearize_if_moved(q, again)
     if actuated:  # effectors alone need no column: they are measured after
         # Rows are linearized where A is. Evaluated at the free configuration instead, H
         # lets a follower load (a pressure) gain energy step after step (the pneunet

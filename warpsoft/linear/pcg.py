@@ -69,6 +69,11 @@ class PCG:
         self.precond.prepare()
 
     @property
+    def stale(self) -> bool:
+        """Whether the preconditioner is due for a refresh: the next :meth:`prepare` does it."""
+        return getattr(self.precond, "stale", False)
+
+    @property
     def capturable(self) -> bool:
         """Whether :meth:`prepare` and :meth:`run` of this step can be captured in a larger graph:
         the preconditioner works on the device and needs no host refactorization this step."""
