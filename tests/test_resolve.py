@@ -58,7 +58,7 @@ def test_device_gauss_seidel_equals_numpy(seed):
                       wp.array(delta_now, dtype=wp.float64, device=d), wp.array(inputs, dtype=wp.float64, device=d),
                       wp.array(starts[:-1], dtype=wp.int32, device=d), wp.array(np.array(counts, np.int32),
                                                                                 dtype=wp.int32, device=d),
-                      1000, 1e-12],
+                      wp.ones(len(worlds), dtype=wp.int32, device=d), 1000, 1e-12],
               outputs=[lam, result], device=d)
     lam, result = lam.numpy(), result.numpy()
     for w, ref in enumerate(expected):

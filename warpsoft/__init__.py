@@ -53,6 +53,7 @@ from .scene import (  # noqa: E402
     load_mesh,
     mesh_shape,
     mesh_surface,
+    obstacles,
     regions,
     rotation_about,
     save_mesh,
@@ -69,5 +70,5 @@ __all__ = [
     "Material", "MeshError", "Model", "OnPlane",
     "Plane", "Region", "Scene", "SceneError", "SimulationError", "Simulator", "Sphere", "State", "StepStats",
     "TetMesh", "UserCodeError", "WarpsoftError", "WorldStats", "box_grid", "finalize", "load_mesh", "mesh_shape",
-    "mesh_surface", "regions", "rotation_about", "save_mesh", "shapes", "waypoints",
+    "mesh_surface", "obstacles", "regions", "rotation_about", "save_mesh", "shapes", "waypoints",
 ]

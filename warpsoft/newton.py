@@ -94,13 +94,13 @@ class Newton:
         self.alpha = wp.array(self.alpha_host, dtype=wp.float64, device=d)
         self.mass = m.mass if m.mass is not None else wp.zeros(n, dtype=wp.float64, device=d)
         rows = sim.rows
-        if rows is not None and rows.num_actuators:
+        if rows is not None and rows.num_columns:
             self.lam_base = wp.zeros(rows.num_rows, dtype=wp.float64, device=d)
             self.lam_full = wp.zeros(rows.num_rows, dtype=wp.float64, device=d)
             self.row_world = wp.array(np.repeat(np.arange(worlds), np.diff(rows.world_row_start)), dtype=wp.int32,
                                       device=d)
             self.delta_start = wp.zeros(rows.num_rows, dtype=wp.float64, device=d)  # rows at the step's start
-            self._rows = (sim.gauss_seidel.lam, rows.world_row_start_d, rows.world_actuators_d)
+            self._rows = (sim.gauss_seidel.lam, rows.world_row_start_d, rows.world_force_rows)
         else:
             self._rows = (wp.zeros(1, dtype=wp.float64, device=d), wp.zeros(worlds + 1, dtype=wp.int32, device=d),
                           wp.zeros(worlds, dtype=wp.int32, device=d))

@@ -117,11 +117,11 @@ class Simulator:
         self.operator = SystemOperator(m, self.rot, self.elastic)
         self.operator.set_scales(self.mass_scale, self.stiffness_scale)
 
-        # constraint rows exist only when some world declares actuators or effectors
+        # constraint rows exist only when some world declares actuators, effectors or obstacles
         self.rows = None
         self.constraint_scale = 1.0 if m.static else h * h  # dx = dx_free + s X lambda, W = s H X
         ncol = 0
-        if any(s.actuators or s.effectors for s in m.scenes):
+        if any(s.actuators or s.effectors or s.obstacles for s in m.scenes):
             self.rows = Rows(m)
             ncol = self.rows.num_columns
             self.gauss_seidel = GaussSeidel(self.rows)
@@ -166,13 +166,17 @@ class Simulator:
         self.before_qp = None
         if self.rows is not None:
             after["delta"], after["points"] = self.rows.delta, self.rows.points
-            if self.rows.num_actuators:
+            if self.rows.num_columns:
                 gs = self.gauss_seidel
-                after |= {"lam": gs.lam, "resolve": gs.result, "W": self.rows.W, "delta_free": self.rows.delta_free}
+                after |= {"lam": gs.lam, "resolve": gs.result, "W": self.rows.W, "delta_free": self.rows.delta_free,
+                          "force_rows": self.rows.world_force_rows}
                 if self.device_inverse is not None:
                     after["qp"] = self.device_inverse.result
                 self.before_qp = Readback({"W": self.rows.W, "delta_free": self.rows.delta_free,
                                            "delta": self.newton.delta_start, "lam": gs.lam}, d)
+            contact = self.rows.kind("contact")
+            if contact is not None:
+                after["contacts_found"] = contact.found
         self.after_step = Readback(after, d)
 
     # ---- the step ------------------------------------------------------------------------

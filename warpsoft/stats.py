@@ -22,9 +22,11 @@ class WorldStats:
     actuator ``delta`` (cable m, cavity m^3) and ``lambda`` (N, Pa), effector positions and
     targets (m) and the distance between them on the controlled axes (m); its elements turned
     inside out after the step (``det F <= 0``); ``linearization_error`` (m, m^3), how far its
-    rows ended from the last linear prediction ``delta_free + W lambda``; its Newton iterations (linear
-    solves) and final relative nonlinear residual ``|R| / |terms of R|``; in the direct model, how far
-    each displacement-driven actuator is from its command this step (cable m, cavity m^3)."""
+    rows ended from the last linear prediction ``delta_free + W lambda``; its Newton iterations
+    (linear solves) and final relative nonlinear residual (see :mod:`warpsoft.newton`); with
+    obstacles, its contacts carrying a force, their total normal force (N) and its deepest
+    penetration (m); in the direct model, how far each displacement-driven actuator is from its
+    command this step (cable m, cavity m^3)."""
 
     cg_iterations: int = 0
     resolve_iterations: int = 0
@@ -35,6 +37,9 @@ class WorldStats:
     linearization_error: float = 0.0
     newton_iterations: int = 0
     newton_residual: float = 0.0
+    contacts: int = 0
+    contact_force: float = 0.0
+    penetration: float = 0.0
     actuator_residual: dict[str, float] = field(default_factory=dict)
     effector_error: dict[str, float] = field(default_factory=dict)
     actuator_delta: dict[str, float] = field(default_factory=dict)
@@ -98,4 +103,7 @@ class StepStats:
     targets = _of_the_world("targets")
     inverted_elements = _of_the_world("inverted_elements")
     linearization_error = _of_the_world("linearization_error")
+    contacts = _of_the_world("contacts")
+    contact_force = _of_the_world("contact_force")
+    penetration = _of_the_world("penetration")
     actuator_residual = _of_the_world("actuator_residual")

@@ -42,7 +42,7 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     m, rows = sim.model, sim.rows
     stats = StepStats(sim.step_index + 1, sim.time + m.dt, worlds=[WorldStats() for _ in range(m.num_worlds)])
     start = time.perf_counter()
-    actuated = rows is not None and rows.num_actuators > 0
+    actuated = rows is not None and rows.num_columns > 0  # rows that carry a force: actuators, contacts
     inverse = actuated and any(s.inverse and rows.world_actuators[w] for w, s in enumerate(m.scenes))
     host_qp = inverse and sim.device_inverse is None
     host_inputs(sim, stats.time, controls)  # user schedules, evaluated once; uploads only when they change
@@ -166,6 +166,9 @@ def begin(sim: Simulator, actuated: bool) -> None:
     else:
         sim.newton.linearize_if_moved(q, again)
     if actuated:  # effectors alone need no column: they are measured after
+        contacts = sim.rows.kind("contact") is not None
+        if contacts:  # which nodes take the contact rows of this step (they stay for its iterations)
+            sim.rows.detect(q, sim.gauss_seidel.lam)
         # Rows are linearized where A is. Evaluated at the free configuration instead, H
         # lets a follower load (a pressure) gain energy step after step (the pneunet
         # oscillated ever wider), and delta(q_free) misses the imposed displacement by a
@@ -173,6 +176,8 @@ def begin(sim: Simulator, actuated: bool) -> None:
         # exactly once the step has converged. (Effector rows measure x - target: their
         # targets moved with the time, so the rows are evaluated again.)
         sim.rows.evaluate(q)
+        if contacts:
+            sim.rows.actuator_columns(sim.columns)  # the columns of this step's contacts
         wp.copy(sim.newton.delta_start, sim.rows.delta)  # the actuators' per-step limits count from here
     sim.newton.start()
 
@@ -368,8 +373,8 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
     rows = sim.rows
     targets = rows.set_time(stats.time)  # the step's targets, already on the device
     delta, points = host["delta"], host["points"][: rows.num_points]
-    lam = host["lam"] if rows.num_actuators else np.zeros(rows.num_rows)
-    result = host["resolve"] if rows.num_actuators else None
+    lam = host["lam"] if rows.num_columns else np.zeros(rows.num_rows)
+    result = host["resolve"] if rows.num_columns else None
     for w, ws in enumerate(stats.worlds):
         a, acts = rows.actuator_rows(w), rows.actuators[w]
         ws.actuator_delta = {x.name: float(v) for x, v in zip(acts, delta[a], strict=True)}
@@ -378,13 +383,16 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
         ws.targets = rows.targets(targets, w)
         ws.effector_error = {e.name: float(np.linalg.norm((ws.effectors[e.name] - ws.targets[e.name])[e.axis_ids]))
                              for e in rows.effectors[w] if e.target is not None}
-        if acts:
+        forces = rows.world_actuators[w] + rows.world_contacts[w] > 0
+        if rows.world_contacts[w]:
+            watch.contacts(sim, stats, w, host)
+        if forces:
             watch.linearization(sim, stats, w, host)
         if acts and sim.model.scenes[w].inverse:
             watch.out_of_reach(sim, stats, w, delta[a], lam[a])
         elif acts:
             watch.actuator_residuals(sim, stats, w, delta[a])
-        if acts and not sim.model.scenes[w].inverse:
+        if forces and not sim.model.scenes[w].inverse:
             ws.resolve_iterations, ws.resolve_residual = int(result[w, 0]), float(result[w, 1])
             if not result[w, 2]:
                 stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: Gauss-Seidel stopped after "

@@ -62,6 +62,25 @@ def inverted_elements(sim: Simulator, stats: StepStats, host: dict[str, np.ndarr
                                   "large; the corotational model keeps going, but the result is not physical there")
 
 
+def contacts(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarray]) -> None:
+    """A world's contacts after the step: how many, the total normal force (N), the deepest
+    penetration (m, the most negative gap); an overflow of its contact rows is a warning, once
+    per episode (the rows went to the first nodes in node order, not the nearest)."""
+    rows, ws = sim.rows, stats.worlds[w]
+    block = rows.contact_rows(w)
+    used = int(host["force_rows"][w]) - int(rows.world_actuators[w])
+    gaps, lam = host["delta"][block][:used], host["lam"][block][:used]
+    ws.contacts = int(np.count_nonzero(lam > 0.0))
+    ws.contact_force = float(lam.sum())
+    ws.penetration = float(max(0.0, -gaps.min())) if used else 0.0
+    found, capacity = int(host["contacts_found"][w]), int(rows.world_contacts[w])
+    if begins(sim, ("overflow", w), found > capacity):
+        stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: {found} nodes came within contact distance "
+                              f"of an obstacle, more than the scene's {capacity} contact rows: the first {capacity} "
+                              "(in node order) were kept, the others may go through; raise it with "
+                              "scene.set_contacts(capacity)")
+
+
 UNPREDICTED = 0.2  # rows ending this far (relative to the step's largest node motion) from the linear prediction
 
 
@@ -72,8 +91,8 @@ def linearization(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.n
     step's largest node motion."""
     rows, ws = sim.rows, stats.worlds[w]
     s, e = rows.world_row_start[w], rows.world_row_start[w + 1]
-    na = int(rows.world_actuators[w])
-    predicted = host["delta_free"][s:e] + host["W"][s:e, :na] @ host["lam"][s:s + na]
+    nf = int(host["force_rows"][w])
+    predicted = host["delta_free"][s:e] + host["W"][s:e, :nf] @ host["lam"][s:s + nf]
     ws.linearization_error = gap = float(np.abs(host["delta"][s:e] - predicted).max()) if e > s else 0.0
     motion = float(np.sqrt(host["health_step"][0]))
     if begins(sim, ("unpredicted", w), gap > UNPREDICTED * motion and gap > 1e-9 * sim.size):

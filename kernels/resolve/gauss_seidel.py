@@ -44,16 +44,19 @@ def projected_gauss_seidel(
     delta_now: wp.array(dtype=wp.float64),
     inputs: wp.array2d(dtype=wp.float64),
     world_row_start: wp.array(dtype=wp.int32),
-    world_actuators: wp.array(dtype=wp.int32),
+    world_force_rows: wp.array(dtype=wp.int32),
+    direct: wp.array(dtype=wp.int32),
     max_iterations: int,
     tolerance: wp.float64,
     lam: wp.array(dtype=wp.float64),
     result: wp.array2d(dtype=wp.float64),
 ):
-    """``lam`` (per row; holds the warm start) of every world's actuator rows."""
+    """``lam`` (per row; holds the warm start) of the force rows in use of every world whose
+    ``direct`` flag is 1 (actuators, then contacts: a contact row is force-driven at 0 within
+    ``lambda >= 0`` and ``delta >= 0``, which is Signorini's condition)."""
     w = wp.tid()
     s = world_row_start[w]
-    na = world_actuators[w]
+    na = world_force_rows[w] * direct[w]
     scale = wp.float64(1e-300)
     for i in range(na):
         r = s + i

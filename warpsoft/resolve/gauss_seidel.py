@@ -101,15 +101,16 @@ class GaussSeidel:
                 r = rows.world_row_start[w] + k
                 host[:, r] = [a.mode == "force", 0.0, a.min_force, a.max_force, a.min_displacement,
                               a.max_displacement, a.max_step]
+            # a contact row: force 0 unless the gap would close, lambda >= 0 and gap >= 0 (Signorini)
+            host[:, rows.contact_rows(w)] = np.array([[1.0, 0.0, 0.0, np.inf, 0.0, np.inf, np.inf]]).T
         self.host = host
         self.inputs = wp.array(host, dtype=wp.float64, device=d)
         self.lam = wp.zeros(n, dtype=wp.float64, device=d)
         self.result = wp.zeros((rows.num_worlds, 3), dtype=wp.float64, device=d)
         self.max_iterations, self.tolerance = int(max_iterations), float(tolerance)
         self._uploaded = None
-        # the rows it resolves per world: none in an inverse world (its QP decides its multipliers)
-        counts = [0 if s.inverse else int(c) for s, c in zip(rows.model.scenes, rows.world_actuators, strict=True)]
-        self.world_rows = wp.array(counts, dtype=wp.int32, device=d)
+        # the worlds it resolves: not an inverse world (its QP decides its multipliers)
+        self.direct = wp.array([0 if s.inverse else 1 for s in rows.model.scenes], dtype=wp.int32, device=d)
 
     def set_values(self, values: np.ndarray) -> None:
         """The imposed value of every row ``(rows,)`` this step; one copy when they changed."""
@@ -119,11 +120,11 @@ class GaussSeidel:
             self._uploaded = values.copy()
 
     def solve(self, W: wp.array, delta_free: wp.array, delta_now: wp.array) -> None:
-        """``lam`` of every direct-model world's actuator rows from ``W`` ``(rows, columns)``,
-        ``delta_free`` and the rows' values at the start of the step ``delta_now`` (``(rows,)``); on
-        the device. Inverse-model worlds' multipliers are left alone."""
+        """``lam`` of every direct-model world's force rows in use (actuators, contacts) from ``W``
+        ``(rows, columns)``, ``delta_free`` and the rows' values at the start of the step
+        ``delta_now`` (``(rows,)``); on the device. Inverse-model worlds' multipliers are left alone."""
         rows = self.rows
         wp.launch(kernels.projected_gauss_seidel, rows.num_worlds,
-                  inputs=[W, delta_free, delta_now, self.inputs, rows.world_row_start_d, self.world_rows,
-                          self.max_iterations, self.tolerance],
+                  inputs=[W, delta_free, delta_now, self.inputs, rows.world_row_start_d, rows.world_force_rows,
+                          self.direct, self.max_iterations, self.tolerance],
                   outputs=[self.lam, self.result], device=rows.device)

@@ -2,11 +2,13 @@
 
 A row has a measure ``delta(q)``, a direction ``H = d delta / dq`` stored as sparse entries
 ``(h_row, h_node, h_coef)`` and a multiplier ``lambda``. Rows are laid out world by world; in a
-world the actuator rows come first (in :data:`ROW_KINDS` order: cables, then cavities), then the
-effector rows. Each actuator row ``j`` of a world owns compliance column ``j`` (the column count
-is the largest actuator count of a world): a column spans every world's nodes and holds, on
-world ``w``'s nodes, the response to world ``w``'s ``j``-th actuator. So ``W = H X`` needs no
-world bookkeeping: a row's entries touch only its world's nodes.
+world the force rows come first: the actuator rows (in :data:`ROW_KINDS` order: cables, then
+cavities), then its block of contact rows (a fixed capacity, of which the first
+``world_force_rows - world_actuators`` are in use after a detection); then the effector rows.
+Force row ``j`` of a world owns compliance column ``j`` (the column count is the largest force
+block of a world): a column spans every world's nodes and holds, on world ``w``'s nodes, the
+response to world ``w``'s ``j``-th force row. So ``W = H X`` needs no world bookkeeping: a row's
+entries touch only its world's nodes.
 """
 
 from __future__ import annotations
@@ -20,11 +22,13 @@ from warpsoft.kernels.rows import mapping
 from ..mapping import locate
 from .cable import CableRows
 from .cavity import CavityRows
+from .contact import ContactRows
 from .effector import EffectorRows
 from .kind import Placed, RowKind
 
-ROW_KINDS: tuple[type[RowKind], ...] = (CableRows, CavityRows, EffectorRows)
-"""Row kinds in table order (actuator kinds first within a world); a new kind is one line here."""
+ROW_KINDS: tuple[type[RowKind], ...] = (CableRows, CavityRows, ContactRows, EffectorRows)
+"""Row kinds in table order (actuators, then other kinds with columns, then the rest, within a
+world); a new kind is one line here."""
 
 
 class Rows:
@@ -34,36 +38,43 @@ class Rows:
     ``h_node``, ``h_coef`` ``(entries,)`` the entries of ``H``; ``points`` ``(points,)`` mapped
     points (m); ``W`` ``(rows, columns)`` compliance of each row against its world's actuator
     columns (m/N, m^3/Pa). Host: ``world_row_start`` ``(worlds + 1,)``, ``world_actuators``
-    ``(worlds,)``, ``num_columns`` (largest actuator count of a world), ``kinds`` (one object
-    per row kind present), ``actuators[w]`` and ``effectors[w]`` (the scene items, in row order).
+    ``(worlds,)``, ``world_contacts`` ``(worlds,)`` (contact capacity), ``num_columns`` (largest
+    force block of a world), ``kinds`` (one object per row kind present), ``actuators[w]`` and
+    ``effectors[w]`` (the scene items, in row order). Device: ``world_force_rows`` ``(worlds,)``,
+    the force rows in use (actuators and the contacts of the last detection).
     """
 
     def __init__(self, model):
         d = self.device = model.device
         self.model = model
         self.num_worlds = model.num_worlds
-        order = [k for k in ROW_KINDS if k.actuator] + [k for k in ROW_KINDS if not k.actuator]
+        order = ([k for k in ROW_KINDS if k.actuator] + [k for k in ROW_KINDS if k.columns and not k.actuator]
+                 + [k for k in ROW_KINDS if not k.columns])
         placed: dict[type[RowKind], list[Placed]] = {k: [] for k in order}
-        row, starts, counts = 0, [0], []
+        row, starts, counts, contacts = 0, [0], [], []
         self.actuators, self.effectors = [], []
         for w, scene in enumerate(model.scenes):
-            na = 0
+            na = nc = 0
             for kind in order:
                 for item in kind.items(scene):
                     n = kind.row_count(item)
                     placed[kind].append(Placed(w, item, row, n))
                     row += n
                     na += n if kind.actuator else 0
+                    nc += n if kind.columns and not kind.actuator else 0
             counts.append(na)
+            contacts.append(nc)
             starts.append(row)
             self.actuators.append([p.item for k in order if k.actuator for p in placed[k] if p.world == w])
             self.effectors.append([p.item for p in placed[EffectorRows] if p.world == w])
         self.num_rows = row
         self.world_row_start = np.array(starts, dtype=np.int32)
         self.world_actuators = np.array(counts, dtype=np.int32)
-        self.num_columns = int(self.world_actuators.max(initial=0))
+        self.world_contacts = np.array(contacts, dtype=np.int32)
+        self.num_columns = int((self.world_actuators + self.world_contacts).max(initial=0))
         self.world_row_start_d = wp.array(self.world_row_start, dtype=wp.int32, device=d)
         self.world_actuators_d = wp.array(self.world_actuators, dtype=wp.int32, device=d)
+        self.world_force_rows = wp.array(self.world_actuators, dtype=wp.int32, device=d)  # no contact yet
 
         # mapped points, kind by kind (a kind's points are contiguous), each located in its elements
         nodes, weights, point = [], [], 0
@@ -101,7 +112,8 @@ class Rows:
         self.h_coef = wp.zeros(entry, dtype=wp.vec3d, device=d)
         col = np.full(self.num_rows, -1, dtype=np.int32)
         for w in range(self.num_worlds):
-            col[starts[w]:starts[w] + counts[w]] = np.arange(counts[w])
+            nf = counts[w] + contacts[w]
+            col[starts[w]:starts[w] + nf] = np.arange(nf)
         self.column_of_row = wp.array(col, dtype=wp.int32, device=d)
         self.W = wp.zeros((self.num_rows, max(self.num_columns, 1)), dtype=wp.float64, device=d)
         self.delta_free = wp.zeros(max(self.num_rows, 1), dtype=wp.float64, device=d)
@@ -115,13 +127,24 @@ class Rows:
         s = int(self.world_row_start[world])
         return slice(s, s + int(self.world_actuators[world]))
 
+    def contact_rows(self, world: int) -> slice:
+        """The world's block of contact rows (its capacity; the first ones are in use)."""
+        s = self.actuator_rows(world).stop
+        return slice(s, s + int(self.world_contacts[world]))
+
     def effector_rows(self, world: int) -> slice:
-        return slice(self.actuator_rows(world).stop, int(self.world_row_start[world + 1]))
+        return slice(self.contact_rows(world).stop, int(self.world_row_start[world + 1]))
 
     @property
     def num_actuators(self) -> int:
         """Actuator rows of all worlds."""
         return int(self.world_actuators.sum())
+
+    def detect(self, q: wp.array, lam: wp.array) -> None:
+        """Contacts at ``q`` (with obstacles): which nodes take the contact rows of this step."""
+        contact = self.kind("contact")
+        if contact is not None:
+            contact.detect(self, q, lam)
 
     @property
     def effector_row_slice(self) -> slice:
@@ -145,7 +168,7 @@ class Rows:
             block.evaluate(self, q)
 
     def actuator_columns(self, columns: wp.array) -> None:
-        """``columns[j] = H_j^T`` for each world's ``j``-th actuator row (``(columns, n)`` vec3d)."""
+        """``columns[j] = H_j^T`` for each world's ``j``-th force row (``(columns, n)`` vec3d)."""
         columns.zero_()
         wp.launch(kernels.rows_to_columns, self.num_entries,
                   inputs=[self.h_row, self.h_node, self.h_coef, self.column_of_row], outputs=[columns],
@@ -168,10 +191,10 @@ class Rows:
 
     def correct(self, dx_free: wp.array, x: wp.array, lam: wp.array, scale: float, dx: wp.array) -> None:
         """``dx = dx_free + scale X lambda`` (m): ``dx_free`` ``(n,)``, the columns ``x``
-        ``(columns, n)``, ``lam`` per row."""
+        ``(columns, n)``, ``lam`` per row (the force rows in use)."""
         m = self.model
         wp.launch(kernels.correct_with_columns, m.num_nodes,
-                  inputs=[dx_free, x, lam, m.node_world, self.world_row_start_d, self.world_actuators_d, scale],
+                  inputs=[dx_free, x, lam, m.node_world, self.world_row_start_d, self.world_force_rows, scale],
                   outputs=[dx], device=self.device)
 
     def forces(self, lam: np.ndarray) -> np.ndarray:

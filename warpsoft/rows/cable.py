@@ -16,7 +16,7 @@ from .kind import RowKind
 
 
 class CableRows(RowKind):
-    name, actuator, scene_attr = "cable", True, "cables"
+    name, actuator, columns, scene_attr = "cable", True, True, "cables"
 
     @staticmethod
     def points(item) -> np.ndarray:

@@ -14,7 +14,7 @@ from .kind import RowKind
 
 
 class CavityRows(RowKind):
-    name, actuator, scene_attr = "cavity", True, "cavities"
+    name, actuator, columns, scene_attr = "cavity", True, True, "cavities"
 
     def __init__(self, model, placed, entry_offset):
         super().__init__(model, placed, entry_offset)

@@ -32,11 +32,14 @@ class Placed:
 
 
 class RowKind:
-    """Base of a row kind. Class attributes: ``name``; ``actuator`` (True: the rows carry a force
-    solved for, so each gets a compliance column); ``scene_attr`` (the Scene's list of items)."""
+    """Base of a row kind. Class attributes: ``name``; ``columns`` (True: the rows carry a force
+    solved for, so each gets a compliance column); ``actuator`` (True: the rows are the scene's
+    actuators, with inputs; an actuator kind has columns); ``scene_attr`` (the Scene's list of
+    items)."""
 
     name = "row"
     actuator = False
+    columns = False
     scene_attr = ""
 
     def __init__(self, model, placed: list[Placed], entry_offset: int):

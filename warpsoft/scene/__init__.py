@@ -5,7 +5,7 @@ A scene is validated as it is written, with errors that name the component and t
 :func:`warpsoft.finalize` turns one or several scenes into a device-side Model.
 """
 
-from . import regions, shapes
+from . import obstacles, regions, shapes
 from .actuator import Actuator
 from .cable import Cable
 from .cavity import Cavity
@@ -20,5 +20,6 @@ __all__ = [
     "Actuator", "Ball", "Body", "Box", "Cable", "Cavity", "Cone", "Cylinder", "Effector", "Fixture", "HalfSpace",
     "InBox", "InHalfSpace", "InSphere", "OnPlane",
     "Load", "Material", "Plane", "Probe", "Region", "Scene", "Sphere", "TetMesh", "box_grid", "load_mesh",
-    "load_weights", "mesh_shape", "mesh_surface", "regions", "rotation_about", "save_mesh", "shapes", "waypoints",
+    "load_weights", "mesh_shape", "mesh_surface", "obstacles", "regions", "rotation_about", "save_mesh", "shapes",
+    "waypoints",
 ]

@@ -18,6 +18,7 @@ from .cavity import Cavity
 from .effector import Effector
 from .material import Material
 from .mesh import TetMesh
+from .obstacles import Obstacle, ObstacleEntry
 from .regions import Region, as_region
 
 Vec3 = tuple[float, float, float]
@@ -136,6 +137,8 @@ class Scene:
         self.cables: list[Cable] = []
         self.cavities: list[Cavity] = []
         self.effectors: list[Effector] = []
+        self.obstacles: list[ObstacleEntry] = []
+        self.contact_capacity = 64  # contact rows per world (set_contacts)
         self.rayleigh_mass = 0.0
         self.rayleigh_stiffness = 0.0
         self.inverse = False
@@ -271,6 +274,31 @@ class Scene:
             raise SceneError(f"scene '{self.name}': Rayleigh coefficients must be >= 0, got ({a}, {b})")
         self.rayleigh_mass, self.rayleigh_stiffness = a, b
 
+    def add_obstacle(self, name: str, shape: Obstacle, contact_distance: float | None = None) -> ObstacleEntry:
+        """A rigid obstacle (``ws.obstacles.Floor``, ``Ball``, ``Box``, ``Capsule``, ``Cylinder``)
+        that every body's surface nodes touch, frictionless: a node closer than
+        ``contact_distance`` (m; default a quarter of the body's mean surface edge) becomes a
+        contact row that keeps it out."""
+        if not isinstance(shape, Obstacle):
+            raise SceneError(f"obstacle '{name}': expected one of ws.obstacles (Floor, Ball, Box, Capsule, "
+                             f"Cylinder), got {type(shape).__name__}")
+        if any(o.name == name for o in self.obstacles):
+            raise SceneError(f"scene '{self.name}': two obstacles are named '{name}'")
+        if contact_distance is not None:
+            contact_distance = _finite(contact_distance, f"obstacle '{name}': contact_distance")
+            if contact_distance <= 0:
+                raise SceneError(f"obstacle '{name}': contact_distance must be > 0 m, got {contact_distance!r}")
+        entry = ObstacleEntry(str(name), shape, contact_distance)
+        self.obstacles.append(entry)
+        return entry
+
+    def set_contacts(self, capacity: int) -> None:
+        """At most ``capacity`` contacts at once in this scene (default 64); more are reported
+        as an overflow (the nearest are not chosen: raise the capacity)."""
+        if isinstance(capacity, bool) or not isinstance(capacity, (int, np.integer)) or capacity < 1:
+            raise SceneError(f"scene '{self.name}': contact capacity must be an integer >= 1, got {capacity!r}")
+        self.contact_capacity = int(capacity)
+
     # ---- checks -----------------------------------------------------------------------
     def _own(self, body: Body, what: str) -> None:
         if not any(b is body for b in self.bodies):
@@ -291,6 +319,9 @@ class Scene:
                     )
             elif body.material.density <= 0 and not body.overrides:
                 raise SceneError(f"scene '{self.name}': dynamic body '{body.name}' has density 0 (no mass)")
+        if self.inverse and self.obstacles:
+            raise SceneError(f"scene '{self.name}': the inverse model with contacts (a QP with complementarity "
+                             "constraints) is not built yet; use the direct model with obstacles")
         if self.inverse:
             if not self.actuators:
                 raise SceneError(f"scene '{self.name}': the inverse model needs at least one actuator")

@@ -1,0 +1,203 @@
+"""Contact rows against analytic obstacles (``warpsoft/rows/contact.py``).
+
+A candidate is a (surface node, obstacle) pair of one world; candidates are grouped by world.
+Detection marks the candidates within their obstacle's contact distance, then gives each world's
+marked candidates, in candidate order (deterministic), the world's contact slots up to its
+capacity. A slot's row measures the gap ``delta = phi(x_node)`` (m, the obstacle's signed
+distance) with ``H = n`` (its outward normal) at the node; an unused slot's row is inert (no
+entry, ``delta = 0``).
+"""
+
+import warp as wp
+
+FLOOR = wp.constant(0)
+BALL = wp.constant(1)
+BOX = wp.constant(2)
+CAPSULE = wp.constant(3)
+CYLINDER = wp.constant(4)
+
+
+@wp.func
+def point_distance(x: wp.vec3d, c: wp.vec3d, radius: wp.float64):
+    """Distance to the point ``c`` minus ``radius``, and the outward normal."""
+    d = x - c
+    length = wp.length(d)
+    n = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(1.0))
+    if length > wp.float64(0.0):
+        n = d / length
+    return length - radius, n
+
+
+@wp.func
+def segment_distance(x: wp.vec3d, a: wp.vec3d, b: wp.vec3d, radius: wp.float64):
+    """Distance to the segment ``ab`` minus ``radius``, and the outward normal."""
+    ab = b - a
+    t = wp.clamp(wp.dot(x - a, ab) / wp.dot(ab, ab), wp.float64(0.0), wp.float64(1.0))
+    d = x - (a + t * ab)
+    length = wp.length(d)
+    n = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(1.0))
+    if length > wp.float64(0.0):
+        n = d / length
+    return length - radius, n
+
+
+@wp.func
+def box_distance(x: wp.vec3d, center: wp.vec3d, half: wp.vec3d, rot: wp.mat33d):
+    """Signed distance to the box and its outward normal (the nearest face's inside)."""
+    p = wp.transpose(rot) * (x - center)
+    q = wp.vec3d(wp.abs(p[0]) - half[0], wp.abs(p[1]) - half[1], wp.abs(p[2]) - half[2])
+    outside = wp.vec3d(wp.max(q[0], wp.float64(0.0)), wp.max(q[1], wp.float64(0.0)), wp.max(q[2], wp.float64(0.0)))
+    dist = wp.length(outside)
+    n_local = wp.vec3d()
+    if dist > wp.float64(0.0):
+        n_local = wp.vec3d(wp.sign(p[0]) * outside[0], wp.sign(p[1]) * outside[1], wp.sign(p[2]) * outside[2]) / dist
+    else:  # inside: the face nearest to the point
+        k = wp.int32(0)
+        if q[1] > q[k]:
+            k = wp.int32(1)
+        if q[2] > q[k]:
+            k = wp.int32(2)
+        dist = q[k]
+        n_local[k] = wp.sign(p[k])
+    return dist, rot * n_local
+
+
+@wp.func
+def cylinder_distance(x: wp.vec3d, a: wp.vec3d, b: wp.vec3d, radius: wp.float64):
+    """Signed distance to the flat-ended cylinder on axis ``ab`` and its outward normal."""
+    axis = b - a
+    half = wp.float64(0.5) * wp.length(axis)
+    u = wp.normalize(axis)
+    rel = x - wp.float64(0.5) * (a + b)
+    along = wp.dot(rel, u)
+    radial_v = rel - along * u
+    radial = wp.length(radial_v)
+    e = wp.vec3d()
+    if radial > wp.float64(0.0):
+        e = radial_v / radial
+    else:  # on the axis: any direction across it
+        e = wp.normalize(wp.cross(u, wp.vec3d(wp.float64(1.0), wp.float64(0.0), wp.float64(0.0))))
+        if wp.length(wp.cross(u, wp.vec3d(wp.float64(1.0), wp.float64(0.0), wp.float64(0.0)))) < wp.float64(1e-6):
+            e = wp.normalize(wp.cross(u, wp.vec3d(wp.float64(0.0), wp.float64(1.0), wp.float64(0.0))))
+    qr = radial - radius
+    qa = wp.abs(along) - half
+    s = wp.sign(along)
+    if qr > wp.float64(0.0) and qa > wp.float64(0.0):  # beyond the rim
+        d = wp.sqrt(qr * qr + qa * qa)
+        return d, (qr * e + qa * s * u) / d
+    if qr > qa:
+        return qr, e
+    return qa, s * u
+
+
+@wp.func
+def obstacle_distance(kind: int, a: wp.vec3d, b: wp.vec3d, radius: wp.float64, rot: wp.mat33d, x: wp.vec3d):
+    """Signed distance (m, negative inside) of ``x`` to an obstacle, and its outward normal."""
+    if kind == FLOOR:  # a: a point of its top plane, b: the upward normal
+        return wp.dot(x - a, b), b
+    if kind == BALL:
+        return point_distance(x, a, radius)
+    if kind == BOX:  # a: centre, b: half sizes
+        return box_distance(x, a, b, rot)
+    if kind == CAPSULE:
+        return segment_distance(x, a, b, radius)
+    return cylinder_distance(x, a, b, radius)
+
+
+@wp.kernel
+def mark_candidates(
+    q: wp.array(dtype=wp.vec3d),
+    cand_node: wp.array(dtype=wp.int32),
+    cand_obstacle: wp.array(dtype=wp.int32),
+    kind: wp.array(dtype=wp.int32),
+    a: wp.array(dtype=wp.vec3d),
+    b: wp.array(dtype=wp.vec3d),
+    radius: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    reach: wp.array(dtype=wp.float64),
+    near: wp.array(dtype=wp.int32),
+):
+    """``near[c] = 1`` when candidate ``c``'s node is within its obstacle's contact distance."""
+    c = wp.tid()
+    o = cand_obstacle[c]
+    phi, n = obstacle_distance(kind[o], a[o], b[o], radius[o], rot[o], q[cand_node[c]])
+    near[c] = wp.where(phi < reach[o], 1, 0)
+
+
+@wp.kernel
+def assign_slots(
+    world_cand_start: wp.array(dtype=wp.int32),
+    near: wp.array(dtype=wp.int32),
+    capacity: wp.array(dtype=wp.int32),
+    slot_start: wp.array(dtype=wp.int32),
+    contact_row: wp.array(dtype=wp.int32),
+    world_actuators: wp.array(dtype=wp.int32),
+    slot_candidate: wp.array(dtype=wp.int32),
+    found: wp.array(dtype=wp.int32),
+    force_rows: wp.array(dtype=wp.int32),
+    lam: wp.array(dtype=wp.float64),
+    cand_lam: wp.array(dtype=wp.float64),
+):
+    """One thread per world: its near candidates take its slots in candidate order; ``found[w]``
+    counts them all (more than the capacity: an overflow), ``force_rows[w]`` is the world's
+    actuator rows plus its contacts. A contact's multiplier starts from what its node and
+    obstacle carried at the last step (0 for a new contact): kept per candidate in between."""
+    w = wp.tid()
+    cap = capacity[w]
+    c0, c1 = world_cand_start[w], world_cand_start[w + 1]
+    for c in range(c0, c1):
+        cand_lam[c] = wp.float64(0.0)
+    for j in range(cap):  # the last step's contacts hand their multipliers to their candidates
+        c = slot_candidate[slot_start[w] + j]
+        if c >= 0:
+            cand_lam[c] = lam[contact_row[w] + j]
+    k = wp.int32(0)  # not int(0): ruff would fold it to a constant
+    for c in range(c0, c1):
+        if near[c] != 0:
+            if k < cap:
+                slot_candidate[slot_start[w] + k] = c
+                lam[contact_row[w] + k] = cand_lam[c]
+            k += 1
+    for j in range(k, cap):
+        slot_candidate[slot_start[w] + j] = -1
+        lam[contact_row[w] + j] = wp.float64(0.0)
+    found[w] = k
+    force_rows[w] = world_actuators[w] + wp.min(k, cap)
+
+
+@wp.kernel
+def contact_rows(
+    q: wp.array(dtype=wp.vec3d),
+    slot_candidate: wp.array(dtype=wp.int32),
+    slot_row: wp.array(dtype=wp.int32),
+    cand_node: wp.array(dtype=wp.int32),
+    cand_obstacle: wp.array(dtype=wp.int32),
+    kind: wp.array(dtype=wp.int32),
+    a: wp.array(dtype=wp.vec3d),
+    b: wp.array(dtype=wp.vec3d),
+    radius: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    entry_offset: int,
+    delta: wp.array(dtype=wp.float64),
+    h_row: wp.array(dtype=wp.int32),
+    h_node: wp.array(dtype=wp.int32),
+    h_coef: wp.array(dtype=wp.vec3d),
+):
+    """Row of slot ``k`` at ``q``: the gap and its normal at the node (entry ``entry_offset + k``),
+    or an inert row for an unused slot."""
+    k = wp.tid()
+    row = slot_row[k]
+    e = entry_offset + k
+    h_row[e] = row
+    c = slot_candidate[k]
+    if c < 0:
+        delta[row] = wp.float64(0.0)
+        h_node[e] = 0
+        h_coef[e] = wp.vec3d()
+        return
+    node = cand_node[c]
+    o = cand_obstacle[c]
+    phi, n = obstacle_distance(kind[o], a[o], b[o], radius[o], rot[o], q[node])
+    delta[row] = phi
+    h_node[e] = node
+    h_coef[e] = n

@@ -1,0 +1,161 @@
+"""Contacts with rigid obstacles (frictionless, direct model): signed distances, Signorini's
+conditions, force balance, and analytic references (uniaxial column, self-weight, a sliding
+block, a propped cantilever)."""
+
+import numpy as np
+import pytest
+import warp as wp
+from warpsoft.kernels.rows import contact as kernels
+
+import warpsoft as ws
+
+G = 9.81
+
+
+@wp.kernel
+def distances(kind: int, a: wp.vec3d, b: wp.vec3d, r: wp.float64, rot: wp.mat33d, x: wp.array(dtype=wp.vec3d),
+              phi: wp.array(dtype=wp.float64), n: wp.array(dtype=wp.vec3d)):
+    i = wp.tid()
+    d, nn = kernels.obstacle_distance(kind, a, b, r, rot, x[i])
+    phi[i] = d
+    n[i] = nn
+
+
+def test_obstacle_distances_and_normals_on_the_device_match_the_geometry():
+    """Each kind's device signed distance equals the host's, and its normal is the distance's
+    gradient (finite differences), inside and outside, on a turned box too."""
+    c, s = np.cos(0.4), np.sin(0.4)
+    turned = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    obstacles = [ws.obstacles.Floor((0, 0, 0.1), (0, 1, 1)), ws.obstacles.Ball((0.1, 0, 0), 0.3),
+                 ws.obstacles.Box((0, 0.1, 0), (0.4, 0.2, 0.6), turned),
+                 ws.obstacles.Capsule((0, 0, -0.2), (0.1, 0.3, 0.2), 0.15),
+                 ws.obstacles.Cylinder((0, 0, -0.2), (0.1, 0.3, 0.2), 0.25)]
+    x = np.random.default_rng(1).uniform(-0.6, 0.6, (400, 3))
+    for o in obstacles:
+        kind, a, b, r, rot = o.pack()
+        phi, n = wp.zeros(len(x), dtype=wp.float64), wp.zeros(len(x), dtype=wp.vec3d)
+        wp.launch(distances, len(x), inputs=[kind, wp.vec3d(*a), wp.vec3d(*b), r, wp.mat33d(*rot.ravel()),
+                                             wp.array(x, dtype=wp.vec3d)], outputs=[phi, n])
+        d = o.distance(x)
+        assert np.abs(phi.numpy() - d).max() < 1e-12 and (d < 0).any() and (d > 0).any()
+        grad = np.stack([(o.distance(x + 1e-6 * e) - o.distance(x - 1e-6 * e)) / 2e-6 for e in np.eye(3)], axis=1)
+        assert np.abs(n.numpy() - grad).max() < 1e-8
+
+
+def block(gravity=(0.0, 0.0, -G), capacity=64, damping=1.0):
+    scene = ws.Scene("block", gravity=gravity, dt=0.005)
+    body = scene.add_body("block", ws.box_grid((-0.01, -0.01, 0.001), (0.01, 0.01, 0.011), (5, 5, 3)),
+                          ws.Material(1e5, 0.3, 1000.0))
+    scene.set_damping(damping, 0.0)
+    scene.add_obstacle("floor", ws.obstacles.Floor())
+    scene.set_contacts(capacity)
+    scene.add_probe("top", (0.0, 0.0, 0.011))
+    scene.add_probe("bottom", (0.0, 0.0, 0.001))
+    return scene, body
+
+
+def contact_rows(sim):
+    """Gaps (m) and normal forces (N) of the contact rows in use after the last step."""
+    rows = sim.rows
+    block_rows = rows.contact_rows(0)
+    used = int(rows.world_force_rows.numpy()[0]) - int(rows.world_actuators[0])
+    return rows.delta.numpy()[block_rows][:used], sim.gauss_seidel.lam.numpy()[block_rows][:used]
+
+
+def test_a_block_dropped_on_the_floor_rests_on_it_with_its_weight():
+    """Signorini at every step (gap >= 0, force >= 0, one of them 0); at rest the floor carries
+    the block's weight, and its top comes down by the self-weight of a column, rho g H^2 / (2E)."""
+    scene, _ = block()
+    sim = ws.Simulator(scene)
+    weight = 1000.0 * 0.02 * 0.02 * 0.01 * G
+    for _ in range(120):
+        stats = sim.step()
+        gap, lam = contact_rows(sim)
+        assert np.all(lam >= 0.0) and np.all(gap >= -1e-7)
+        assert np.all(np.abs(gap * lam) <= 1e-9 * weight * 0.01)
+    assert stats.contacts == 36 and stats.contact_force == pytest.approx(weight, rel=1e-6)
+    assert stats.penetration < 1e-9
+    probes = sim.probe_positions()
+    assert abs(probes["bottom"][2]) < 1e-9
+    squeeze = 0.01 - (probes["top"][2] - probes["bottom"][2])
+    assert squeeze == pytest.approx(1000.0 * G * 0.01 ** 2 / (2 * 1e5), rel=0.1)
+
+
+def test_frictionless_column_matches_the_uniaxial_solution(scene_module):
+    """Held by contact alone, frictionless: uniform uniaxial stress, which linear elements
+    represent exactly (measured: 1e-11 relative at the default mesh once at rest)."""
+    column = scene_module("scenes/validation/column.py")
+    sim = ws.Simulator(column.build())
+    history = [sim.step() for _ in range(40)]
+    drop = 0.03 - sim.probe_positions()["top"][2]
+    assert drop == pytest.approx(column.uniaxial_shortening(), rel=1e-3)
+    assert history[-1].contact_force == pytest.approx(0.2 / 4, rel=1e-9)  # the quarter's share of the load
+    assert not history[-1].warnings
+
+
+def test_a_frictionless_block_slides_down_a_slope_at_g_sin():
+    """Gravity turned by 20 degrees against the floor (an incline): the block slides at
+    g sin(20 deg), implicit Euler's x_n = a h^2 n (n + 1) / 2, and stays on the floor."""
+    angle = np.radians(20.0)
+    scene, _ = block(gravity=(G * np.sin(angle), 0.0, -G * np.cos(angle)), damping=0.0)
+    sim = ws.Simulator(scene)
+    x0 = sim.probe_positions()["bottom"][0]
+    n = 40
+    for _ in range(n):
+        stats = sim.step()
+    moved = sim.probe_positions()["bottom"][0] - x0
+    a, h = G * np.sin(angle), 0.005
+    assert moved == pytest.approx(a * h * h * n * (n + 1) / 2, rel=0.02)
+    assert stats.contact_force == pytest.approx(1000.0 * 4e-6 * G * np.cos(angle), rel=0.05)
+
+
+@pytest.mark.parametrize("kind", ["cylinder", "ball", "box"])
+def test_a_cantilever_propped_at_its_tip_carries_three_eighths_of_its_weight_there(scene_module, kind):
+    """A quasi-static cantilever under its weight, its tip resting on an obstacle that just
+    touches it: the prop's reaction is 3/8 of the weight (beam theory; measured 0.374-0.381)."""
+    scene = scene_module("scenes/validation/cantilever.py").build(gravity=G)
+    r, bottom = 0.02, -0.005
+    shape = {"cylinder": ws.obstacles.Cylinder((0.1, -0.02, bottom - r), (0.1, 0.02, bottom - r), r),
+             "ball": ws.obstacles.Ball((0.1, 0.0, bottom - r), r),
+             "box": ws.obstacles.Box((0.11, 0.0, bottom - 0.01), (0.02, 0.04, 0.02))}[kind]
+    scene.add_obstacle("prop", shape)
+    sim = ws.Simulator(scene)
+    sim.step()
+    stats = sim.step()
+    weight = 1000.0 * 0.1 * 0.01 * 0.01 * G
+    assert stats.contacts > 0 and stats.contact_force == pytest.approx(3 / 8 * weight, rel=0.03)
+    assert stats.penetration < 5e-6  # (Gauss-Seidel is slow on a line of contacts: micrometres)
+    free = ws.Simulator(scene_module("scenes/validation/cantilever.py").build(gravity=G))
+    free.step()
+    assert free.probe_positions()["tip"][2] < -1e-2 and sim.probe_positions()["tip"][2] > -1e-4  # 13 mm, held
+
+
+def test_more_near_nodes_than_contact_rows_is_reported():
+    scene, _ = block(capacity=4)
+    sim = ws.Simulator(scene)
+    said = [m for _ in range(40) for m in sim.step().warnings]
+    assert any("more than the scene's 4 contact rows" in m and "set_contacts" in m for m in said)
+
+
+def test_obstacles_are_checked_and_only_declared_ones_run():
+    scene, body = block()
+    with pytest.raises(ws.SceneError, match="expected one of ws.obstacles"):
+        scene.add_obstacle("wall", ws.shapes.Box((0, 0, 0), (1, 1, 1)))
+    with pytest.raises(ws.SceneError, match="contact_distance must be > 0"):
+        scene.add_obstacle("wall", ws.obstacles.Floor(), contact_distance=-1e-3)
+    with pytest.raises(ws.SceneError, match="two obstacles are named 'floor'"):
+        scene.add_obstacle("floor", ws.obstacles.Floor())
+    with pytest.raises(ws.SceneError, match="Ball.radius must be a finite number > 0"):
+        ws.obstacles.Ball((0, 0, 0), 0.0)
+    with pytest.raises(ws.SceneError, match="Box.rotation must be a 3x3 rotation"):
+        ws.obstacles.Box((0, 0, 0), (1, 1, 1), rotation=np.eye(3) * 2)
+    with pytest.raises(ws.SceneError, match="contact capacity must be an integer >= 1"):
+        scene.set_contacts(0)
+    scene.inverse = True
+    scene.add_cable("c", body, points=[(0.0, 0.0, 0.006)], pull_point=(-0.02, 0.0, 0.006))
+    scene.add_effector("e", (0.0, 0.0, 0.011), target=(0.0, 0.0, 0.012))
+    with pytest.raises(ws.SceneError, match="inverse model with contacts"):
+        ws.Simulator(scene)
+    plain, _ = block()
+    plain.obstacles.clear()
+    assert ws.Simulator(plain).rows is None  # no obstacle, no effector, no actuator: no row at all

@@ -1,0 +1,117 @@
+"""Contact rows: the gap between a soft body's surface nodes and the scene's rigid obstacles
+(frictionless Signorini rows: ``delta = phi(x) >= 0``, ``lambda >= 0`` the normal force (N),
+one of them zero). A world has a fixed block of ``capacity`` rows; detection, at the start of a
+step, fills the first of them with the nodes then within their obstacle's contact distance (in
+node order: deterministic); the rows are evaluated at every linearization of the step for
+those nodes, and the rest stay inert. More near nodes than rows is an overflow, reported.
+Kernels: ``kernels/rows/contact.py``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from warpsoft.kernels.rows import contact as kernels
+
+from .kind import RowKind
+
+
+@dataclass
+class ContactBlock:
+    """A world's block of contact rows: its obstacles and capacity (the scene's)."""
+
+    obstacles: list
+    capacity: int
+    name: str = "contacts"
+
+
+def mean_surface_edge(mesh) -> float:
+    """Mean edge length (m) of a mesh's surface triangles."""
+    tris = mesh.surface()
+    x = mesh.nodes[tris]
+    return float(np.mean(np.linalg.norm(x - np.roll(x, 1, axis=1), axis=2)))
+
+
+class ContactRows(RowKind):
+    name, actuator, columns = "contact", False, True
+
+    @classmethod
+    def items(cls, scene) -> list:
+        return [ContactBlock(list(scene.obstacles), scene.contact_capacity)] if scene.obstacles else []
+
+    @staticmethod
+    def row_count(item) -> int:
+        return item.capacity
+
+    def __init__(self, model, placed, entry_offset):
+        super().__init__(model, placed, entry_offset)
+        d = model.device
+        worlds = model.num_worlds
+        kind, a, b, radius, rot, reach = [], [], [], [], [], []
+        cand_node, cand_obstacle, cand_start = [], [], [0]
+        capacity, slot_start, contact_row, slot_row = np.zeros(worlds, np.int32), [0], np.zeros(worlds, np.int32), []
+        by_world = {p.world: p for p in placed}
+        for w in range(worlds):
+            p = by_world.get(w)
+            if p is not None:
+                bodies = [info for info in model.bodies if info.world == w]
+                for entry in p.item.obstacles:
+                    k, pa, pb, r, R = entry.shape.pack()
+                    for info in bodies:
+                        body = next(bd for bd in model.scenes[w].bodies if bd.name == info.name)
+                        dist = entry.contact_distance or 0.25 * mean_surface_edge(body.mesh)
+                        kind.append(k)
+                        a.append(pa)
+                        b.append(pb)
+                        radius.append(r)
+                        rot.append(R)
+                        reach.append(dist)
+                        nodes = np.unique(info.surface)
+                        cand_node.append(nodes)
+                        cand_obstacle.append(np.full(len(nodes), len(kind) - 1))
+                capacity[w] = p.num_rows
+                contact_row[w] = p.first_row
+                slot_row.append(np.arange(p.first_row, p.first_row + p.num_rows))
+            cand_start.append(sum(len(c) for c in cand_node))
+            slot_start.append(slot_start[-1] + int(capacity[w]))
+        self.num_slots = slot_start[-1]
+        self.num_entries = self.num_slots
+        self.num_candidates = cand_start[-1]
+        i32 = lambda v: wp.array(np.asarray(v, dtype=np.int32), dtype=wp.int32, device=d)  # noqa: E731
+        self.kind, self.reach = i32(kind), wp.array(np.array(reach), dtype=wp.float64, device=d)
+        self.a = wp.array(np.array(a), dtype=wp.vec3d, device=d)
+        self.b = wp.array(np.array(b), dtype=wp.vec3d, device=d)
+        self.radius = wp.array(np.array(radius), dtype=wp.float64, device=d)
+        self.rot = wp.array(np.array(rot), dtype=wp.mat33d, device=d)
+        self.cand_node = i32(np.concatenate(cand_node))
+        self.cand_obstacle = i32(np.concatenate(cand_obstacle))
+        self.world_cand_start = i32(cand_start)
+        self.capacity, self.capacity_np = i32(capacity), capacity
+        self.slot_start, self.contact_row = i32(slot_start), i32(contact_row)
+        self.slot_row = i32(np.concatenate(slot_row))
+        self.near = wp.zeros(max(self.num_candidates, 1), dtype=wp.int32, device=d)
+        self.cand_lam = wp.zeros(max(self.num_candidates, 1), dtype=wp.float64, device=d)  # warm starts (N)
+        self.slot_candidate = wp.full(self.num_slots, -1, dtype=wp.int32, device=d)
+        self.found = wp.zeros(worlds, dtype=wp.int32, device=d)  # near nodes per world at the last detection
+
+    def detect(self, table, q: wp.array, lam: wp.array) -> None:
+        """The nodes within contact distance at ``q`` take their world's contact rows; the
+        worlds' force-row counts (actuators + contacts) follow; a contact's multiplier starts
+        from its node's at the last step."""
+        d = self.model.device
+        wp.launch(kernels.mark_candidates, self.num_candidates,
+                  inputs=[q, self.cand_node, self.cand_obstacle, self.kind, self.a, self.b, self.radius, self.rot,
+                          self.reach], outputs=[self.near], device=d)
+        wp.launch(kernels.assign_slots, self.model.num_worlds,
+                  inputs=[self.world_cand_start, self.near, self.capacity, self.slot_start, self.contact_row,
+                          table.world_actuators_d],
+                  outputs=[self.slot_candidate, self.found, table.world_force_rows, lam, self.cand_lam], device=d)
+
+    def evaluate(self, table, q) -> None:
+        wp.launch(kernels.contact_rows, self.num_slots,
+                  inputs=[q, self.slot_candidate, self.slot_row, self.cand_node, self.cand_obstacle, self.kind, self.a,
+                          self.b, self.radius, self.rot, self.entry_offset],
+                  outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)

@@ -1,0 +1,194 @@
+"""Rigid obstacles the soft bodies touch (analytic solids, fixed in the world).
+
+An obstacle is a solid given by its signed distance ``phi(x)`` (m, negative inside) and outward
+normal; a soft body's surface nodes closer than a contact distance become contact rows
+(Signorini: ``phi >= 0``, normal force ``>= 0``, one of them zero). Declared with
+:meth:`warpsoft.Scene.add_obstacle`; nothing is detected in a scene that declares none.
+
+Every obstacle packs into the same record for the kernels (``kernels/rows/contact.py``): a kind,
+two points ``a`` and ``b`` (m), a radius (m) and a rotation (world from local).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SceneError
+
+FLOOR, BALL, BOX, CAPSULE, CYLINDER = range(5)  # kinds, as the kernels know them
+
+
+def _vec3(value, what: str) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise SceneError(f"{what} must be 3 numbers, got {value!r}") from None
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise SceneError(f"{what} must be 3 finite numbers, got {value!r}")
+    return a
+
+
+def _tuple(a: np.ndarray) -> tuple:
+    return tuple(float(x) for x in a)
+
+
+def _positive(value, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or value <= 0:
+        raise SceneError(f"{what} must be a finite number > 0 m, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """Base: what every obstacle packs for the kernels (``kind``, ``a``, ``b``, ``radius``,
+    ``rotation``) and its signed distance on the host (for checks and tests)."""
+
+    def pack(self) -> tuple[int, np.ndarray, np.ndarray, float, np.ndarray]:
+        raise NotImplementedError
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (m) of ``(n, 3)`` points: negative inside."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class Floor(Obstacle):
+    """The half-space below the plane through ``point`` with upward ``normal`` (the floor's top)."""
+
+    point: tuple = (0.0, 0.0, 0.0)
+    normal: tuple = (0.0, 0.0, 1.0)
+    _n: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        p, n = _vec3(self.point, "Floor.point"), _vec3(self.normal, "Floor.normal")
+        if np.linalg.norm(n) == 0:
+            raise SceneError("Floor.normal must be non-zero")
+        object.__setattr__(self, "_n", n / np.linalg.norm(n))
+        object.__setattr__(self, "point", _tuple(p))
+
+    def pack(self):
+        return FLOOR, np.asarray(self.point), self._n, 0.0, np.eye(3)
+
+    def distance(self, points):
+        return (np.asarray(points) - np.asarray(self.point)) @ self._n
+
+
+@dataclass(frozen=True)
+class Ball(Obstacle):
+    """A rigid ball of ``radius`` (m) at ``center`` (m)."""
+
+    center: tuple
+    radius: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "center", _tuple(_vec3(self.center, "Ball.center")))
+        object.__setattr__(self, "radius", _positive(self.radius, "Ball.radius"))
+
+    def pack(self):
+        return BALL, np.asarray(self.center), np.zeros(3), self.radius, np.eye(3)
+
+    def distance(self, points):
+        return np.linalg.norm(np.asarray(points) - np.asarray(self.center), axis=1) - self.radius
+
+
+@dataclass(frozen=True)
+class Box(Obstacle):
+    """A rigid box of edge lengths ``size`` (m) centred at ``center`` (m), turned by ``rotation``
+    (a 3x3 rotation matrix, world from box axes; axis-aligned by default)."""
+
+    center: tuple
+    size: tuple
+    rotation: tuple | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "center", _tuple(_vec3(self.center, "Box.center")))
+        size = _vec3(self.size, "Box.size")
+        if np.any(size <= 0):
+            raise SceneError(f"Box.size must be > 0 on every axis, got {size.tolist()}")
+        object.__setattr__(self, "size", _tuple(size))
+        r = np.eye(3) if self.rotation is None else np.asarray(self.rotation, dtype=float)
+        if r.shape != (3, 3) or not np.allclose(r.T @ r, np.eye(3), atol=1e-9) or np.linalg.det(r) < 0:
+            raise SceneError(f"Box.rotation must be a 3x3 rotation matrix, got {self.rotation!r}")
+        object.__setattr__(self, "rotation", tuple(_tuple(row) for row in r))
+
+    def pack(self):
+        return BOX, np.asarray(self.center), 0.5 * np.asarray(self.size), 0.0, np.asarray(self.rotation)
+
+    def distance(self, points):
+        local = (np.asarray(points) - np.asarray(self.center)) @ np.asarray(self.rotation)
+        q = np.abs(local) - 0.5 * np.asarray(self.size)
+        outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+        return outside + np.minimum(q.max(axis=1), 0.0)
+
+
+@dataclass(frozen=True)
+class Capsule(Obstacle):
+    """The points within ``radius`` (m) of the segment from ``a`` to ``b`` (m)."""
+
+    a: tuple
+    b: tuple
+    radius: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "a", _tuple(_vec3(self.a, "Capsule.a")))
+        object.__setattr__(self, "b", _tuple(_vec3(self.b, "Capsule.b")))
+        object.__setattr__(self, "radius", _positive(self.radius, "Capsule.radius"))
+        if np.allclose(self.a, self.b):
+            raise SceneError("Capsule: a and b must differ (use a Ball for a point)")
+
+    def pack(self):
+        return CAPSULE, np.asarray(self.a), np.asarray(self.b), self.radius, np.eye(3)
+
+    def distance(self, points):
+        a, b = np.asarray(self.a), np.asarray(self.b)
+        ab = b - a
+        t = np.clip((np.asarray(points) - a) @ ab / (ab @ ab), 0.0, 1.0)
+        return np.linalg.norm(np.asarray(points) - (a + t[:, None] * ab), axis=1) - self.radius
+
+
+@dataclass(frozen=True)
+class Cylinder(Obstacle):
+    """A rigid cylinder of ``radius`` (m) whose axis runs from ``a`` to ``b`` (m), flat ends."""
+
+    a: tuple
+    b: tuple
+    radius: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "a", _tuple(_vec3(self.a, "Cylinder.a")))
+        object.__setattr__(self, "b", _tuple(_vec3(self.b, "Cylinder.b")))
+        object.__setattr__(self, "radius", _positive(self.radius, "Cylinder.radius"))
+        if np.allclose(self.a, self.b):
+            raise SceneError("Cylinder: a and b must differ")
+
+    def pack(self):
+        return CYLINDER, np.asarray(self.a), np.asarray(self.b), self.radius, np.eye(3)
+
+    def distance(self, points):
+        a, b = np.asarray(self.a), np.asarray(self.b)
+        axis = b - a
+        length = np.linalg.norm(axis)
+        u = axis / length
+        rel = np.asarray(points) - 0.5 * (a + b)
+        along = rel @ u
+        radial = np.linalg.norm(rel - along[:, None] * u, axis=1)
+        q = np.stack([radial - self.radius, np.abs(along) - 0.5 * length], axis=1)
+        return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+
+
+@dataclass
+class ObstacleEntry:
+    """An obstacle of a scene (use :meth:`Scene.add_obstacle`): its name, solid, and the distance
+    (m) within which a surface node becomes a contact (None: a quarter of the body's mean
+    surface edge, set when the model is built)."""
+
+    name: str
+    shape: Obstacle
+    contact_distance: float | None = None
+
+
+__all__ = ["Ball", "Box", "Capsule", "Cylinder", "Floor", "Obstacle", "ObstacleEntry"]
