@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+import warpsoft as ws
 from warpsoft.io.cli import main
 
 from .conftest import ROOT
@@ -107,6 +108,49 @@ def test_usd_draws_the_cavity_walls_moving_with_the_body(tmp_path):
     assert points.GetTimeSamples() == [0.0, 1.0, 2.0, 3.0]
     p0, p3 = np.array(points.Get(0.0)), np.array(points.Get(3.0))
     assert len(p0) > 10 and np.abs(p3 - p0).max() > 1e-5  # the walls moved
+
+
+def test_obstacles_are_drawn_and_contacts_reported(tmp_path):
+    """The column on its floor from the CLI: the report gives the contacts and their total normal
+    force per step; the USD holds the floor as a square through its top plane."""
+    from pxr import Usd, UsdGeom
+
+    usd, rep = tmp_path / "column.usda", tmp_path / "column.json"
+    assert main(["run", str(ROOT / "scenes/validation/column.py"), "--steps", "12", "--usd", str(usd),
+                 "--report", str(rep), "--quiet"]) == 0
+    d = json.loads(rep.read_text())
+    assert d["contacts"]["obstacles"] == ["floor"] and min(d["contacts"]["count"]) > 10
+    assert d["contacts"]["normal_force"][-1] == pytest.approx(0.05, rel=1e-4)  # the quarter column's load
+    stage = Usd.Stage.Open(str(usd))
+    assert stage.GetPrimAtPath("/World/obstacles").GetTypeName() == "Scope"
+    floor = UsdGeom.Mesh(stage.GetPrimAtPath("/World/obstacles/floor"))
+    corners = np.array(floor.GetPointsAttr().Get())
+    assert corners.shape == (4, 3) and np.abs(corners[:, 2]).max() < 1e-9 and np.ptp(corners[:, 0]) > 0.1
+
+
+def test_usd_places_turned_and_long_obstacles(tmp_path):
+    """A turned box and a slanted cylinder: the prims' world transforms put a local point where
+    the obstacle's own geometry says it is."""
+    from pxr import Gf, Usd, UsdGeom
+
+    from warpsoft.io.usd import UsdWriter
+
+    scene = ws.Scene("s", dt=0.01)
+    scene.add_body("b", ws.box_grid((0, 0, 0.1), (0.01, 0.01, 0.11), (1, 1, 1)), ws.Material(1e5, 0.3, 1000.0))
+    c, s_ = np.cos(0.5), np.sin(0.5)
+    box = ws.obstacles.Box((0.1, 0.2, 0.0), (0.2, 0.1, 0.05), ((c, -s_, 0.0), (s_, c, 0.0), (0.0, 0.0, 1.0)))
+    cyl = ws.obstacles.Cylinder((0.0, 0.0, 0.0), (0.1, 0.1, 0.05), 0.02)
+    scene.add_obstacle("box", box)
+    scene.add_obstacle("cyl", cyl)
+    writer = UsdWriter(tmp_path / "o.usda", ws.finalize(scene))
+    writer.save()
+    stage = Usd.Stage.Open(str(tmp_path / "o.usda"))
+    to_world = UsdGeom.Xformable(stage.GetPrimAtPath("/World/obstacles/box")).ComputeLocalToWorldTransform(0)
+    corner = np.array(to_world.Transform(Gf.Vec3d(0.5, 0.5, 0.5)))  # a corner of the unit cube
+    assert abs(box.distance(corner[None])[0]) < 1e-6 and np.linalg.norm(corner - box.center) > 0.1
+    to_world = UsdGeom.Xformable(stage.GetPrimAtPath("/World/obstacles/cyl")).ComputeLocalToWorldTransform(0)
+    end = np.array(to_world.Transform(Gf.Vec3d(0.0, 0.0, 0.5 * np.linalg.norm(np.subtract(cyl.b, cyl.a)))))
+    assert np.allclose(end, cyl.b, atol=1e-6)  # (USD stores the scale in float32)
 
 
 # ---- outputs checked first, how a run ended, user code, interruption (issue: never lose a result) ----

@@ -30,7 +30,8 @@ from warpsoft import Simulator
 from warpsoft.io.runner import build_scene
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENES = ["scenes/finger.py", "scenes/trunk.py", "scenes/diamond.py", "scenes/finger.py:dt=0.5,mesh_size=0.005"]
+SCENES = ["scenes/finger.py", "scenes/trunk.py", "scenes/diamond.py", "scenes/finger.py:dt=0.5,mesh_size=0.005",
+          "scenes/validation/column.py"]
 RUNS = {
     "cpu_direct": ("cpu", "direct", {}),
     "cuda_pcg_graph": ("cuda", "pcg", {}),

@@ -82,6 +82,12 @@ class RunReport:
         if targeted:
             out["targets"] = {name: [np.asarray(s.targets[name]).tolist() for s in self.steps] for name in targeted}
             out["effector_error"] = {name: [s.effector_error[name] for s in self.steps] for name in targeted}
+        if self.sim.rows.kind("contact") is not None:
+            out["contacts"] = {"obstacles": [o.name for o in self.sim.model.scene.obstacles],
+                               "count": [s.contacts for s in self.steps],
+                               "normal_force": [s.contact_force for s in self.steps],
+                               "penetration": [s.penetration for s in self.steps],
+                               "units": "normal force N (the total over the contacts), penetration m"}
         if self.sim.model.scene.inverse:
             out["inverse"] = {"epsilon": self.sim.model.scene.inverse_epsilon,
                               "qp_status": [s.qp_status for s in self.steps],

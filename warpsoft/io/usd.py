@@ -1,5 +1,5 @@
 """USD export: one stage per run, time-sampled body surfaces, cavity walls, cables, probe,
-effector and target spheres (each kind under a typed Scope)."""
+effector and target spheres, and the obstacles (each kind under a typed Scope)."""
 
 from __future__ import annotations
 
@@ -71,8 +71,53 @@ class UsdWriter:
                 mesh.CreateDisplayOpacityAttr(Vt.FloatArray([0.5]))
                 mesh.CreateDoubleSidedAttr(True)
                 self.cavities.append((mesh, ids))
+        self._obstacles(model, size)
         self.frames = 0
         _ = Sdf  # imported for its side effect of loading the USD file formats
+
+    def _obstacles(self, model: Model, size: float) -> None:
+        """The scene's rigid obstacles as static prims (grey, a floor as a square of 4 model sizes)."""
+        from ..scene import obstacles as ob
+
+        Gf, Vt, UsdGeom = self._Gf, self._Vt, self._UsdGeom
+        entries = [(w, e) for w, scene in enumerate(model.scenes) for e in scene.obstacles]
+        if not entries:
+            return
+        UsdGeom.Scope.Define(self.stage, "/World/obstacles")
+        grey = Vt.Vec3fArray([Gf.Vec3f(0.6, 0.6, 0.62)])
+        for w, entry in entries:
+            path = f"/World/obstacles/{_name(entry.name)}" + (f"_{w}" if model.num_worlds > 1 else "")
+            shape = entry.shape
+            if isinstance(shape, ob.Floor):
+                n = np.asarray(shape.normal) / np.linalg.norm(shape.normal)
+                u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+                u /= np.linalg.norm(u)
+                v = np.cross(n, u)
+                c = np.asarray(shape.point)
+                corners = [c + 2 * size * (su * u + sv * v) for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+                prim = UsdGeom.Mesh.Define(self.stage, path)
+                prim.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, p)) for p in corners]))
+                prim.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
+                prim.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))
+                prim.CreateDoubleSidedAttr(True)
+            elif isinstance(shape, ob.Ball):
+                prim = UsdGeom.Sphere.Define(self.stage, path)
+                prim.CreateRadiusAttr(shape.radius)
+                prim.AddTranslateOp().Set(Gf.Vec3d(*shape.center))
+            elif isinstance(shape, ob.Box):
+                prim = UsdGeom.Cube.Define(self.stage, path)
+                prim.CreateSizeAttr(1.0)
+                prim.AddTransformOp().Set(_placement(np.asarray(shape.center), np.asarray(shape.rotation), Gf))
+                prim.AddScaleOp().Set(Gf.Vec3f(*map(float, shape.size)))
+            else:  # a capsule or a cylinder, along its axis a -> b
+                a, b = np.asarray(shape.a), np.asarray(shape.b)
+                kind = UsdGeom.Capsule if isinstance(shape, ob.Capsule) else UsdGeom.Cylinder
+                prim = kind.Define(self.stage, path)
+                prim.CreateRadiusAttr(shape.radius)
+                prim.CreateHeightAttr(float(np.linalg.norm(b - a)))
+                prim.CreateAxisAttr(UsdGeom.Tokens.z)
+                prim.AddTransformOp().Set(_placement(0.5 * (a + b), _turn_z_to(b - a), Gf))
+            prim.CreateDisplayColorAttr(grey)
 
     def _sphere(self, path: str, color) -> object:
         Gf, Vt = self._Gf, self._Vt
@@ -126,6 +171,22 @@ class UsdWriter:
         self.stage.SetEndTimeCode(max(self.frames - 1, 0))
         self.stage.GetRootLayer().Save()
         return self.path
+
+
+def _placement(center: np.ndarray, rotation: np.ndarray, Gf) -> object:
+    """A USD transform (row vectors: the rotation's transpose, then the translation)."""
+    m = np.eye(4)
+    m[:3, :3] = rotation.T
+    m[3, :3] = center
+    return Gf.Matrix4d(*m.ravel().tolist())
+
+
+def _turn_z_to(direction: np.ndarray) -> np.ndarray:
+    """A rotation taking the z axis to ``direction``."""
+    z = direction / np.linalg.norm(direction)
+    x = np.cross([0.0, 1.0, 0.0] if abs(z[1]) < 0.9 else [1.0, 0.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z], axis=1)
 
 
 def _name(name: str) -> str:
