@@ -55,11 +55,15 @@ def block(gravity=(0.0, 0.0, -G), capacity=64, damping=1.0):
 
 
 def contact_rows(sim):
-    """Gaps (m) and normal forces (N) of the contact rows in use after the last step."""
+    """Per contact in use after the last step: its rows' values ``(contacts, rows per contact)``
+    (gap m, then the slips m with friction) and forces (normal N, then the friction forces)."""
     rows = sim.rows
-    block_rows = rows.contact_rows(0)
-    used = int(rows.world_force_rows.numpy()[0]) - int(rows.world_actuators[0])
-    return rows.delta.numpy()[block_rows][:used], sim.gauss_seidel.lam.numpy()[block_rows][:used]
+    rps = rows.rows_per_contact(0)
+    used = (int(rows.world_force_rows.numpy()[0]) - int(rows.world_actuators[0])) // rps
+    block = rows.contact_rows(0)
+    delta = rows.delta.numpy()[block][:used * rps].reshape(used, rps)
+    lam = sim.gauss_seidel.lam.numpy()[block][:used * rps].reshape(used, rps)
+    return delta, lam
 
 
 def test_a_block_dropped_on_the_floor_rests_on_it_with_its_weight():
@@ -70,7 +74,7 @@ def test_a_block_dropped_on_the_floor_rests_on_it_with_its_weight():
     weight = 1000.0 * 0.02 * 0.02 * 0.01 * G
     for _ in range(120):
         stats = sim.step()
-        gap, lam = contact_rows(sim)
+        gap, lam = (a[:, 0] for a in contact_rows(sim))
         assert np.all(lam >= 0.0) and np.all(gap >= -1e-7)
         assert np.all(np.abs(gap * lam) <= 1e-9 * weight * 0.01)
     assert stats.contacts == 36 and stats.contact_force == pytest.approx(weight, rel=1e-6)
@@ -130,6 +134,48 @@ def test_a_cantilever_propped_at_its_tip_carries_three_eighths_of_its_weight_the
     assert free.probe_positions()["tip"][2] < -1e-2 and sim.probe_positions()["tip"][2] > -1e-4  # 13 mm, held
 
 
+def test_the_incline_sticks_below_tan_mu_and_slides_above_at_g_sin_minus_mu_cos(scene_module):
+    """Coulomb friction: at 20 degrees the block stays with mu = 0.5 (tan 20 = 0.36) and slides
+    with mu = 0.3, at g (sin - mu cos) (measured +3 % over steps 40-60, the start's bounce still
+    fading), its contacts at the cone's edge (friction = mu x normal force). At every step each
+    contact's friction stays in its cone; on its edge it opposes the slip, inside it the node sticks."""
+    incline = scene_module("scenes/validation/incline.py")
+    for mu in (0.5, 0.3):
+        sim = ws.Simulator(incline.build(angle=20.0, mu=mu))
+        x = []
+        for _ in range(60):
+            stats = sim.step()
+            slip, lam = contact_rows(sim)
+            normal, tangential = lam[:, 0], np.linalg.norm(lam[:, 1:], axis=1)
+            assert np.all(tangential <= mu * normal * (1 + 1e-9) + 1e-15)
+            sliding = (tangential >= mu * normal * (1 - 1e-6)) & (np.linalg.norm(slip[:, 1:], axis=1) > 1e-8)
+            assert np.all(np.einsum("ij,ij->i", lam[sliding, 1:], slip[sliding, 1:]) <= 0.0)  # it opposes the slip
+            stuck = tangential < mu * normal * (1 - 1e-6)
+            assert np.all(np.abs(slip[stuck, 1:]) < 1e-6)  # the others stick (to the solver's tolerance)
+            x.append(sim.probe_positions()["center"] @ incline.downhill(20.0))
+        acceleration = (x[59] - 2 * x[49] + x[39]) / (10 * 0.005) ** 2
+        if mu == 0.5:
+            assert abs(x[-1] - x[0]) < 1e-8 and abs(acceleration) < 1e-6
+        else:
+            assert acceleration == pytest.approx(incline.sliding_acceleration(20.0, 0.3), rel=0.05)
+            assert stats.friction_force == pytest.approx(0.3 * stats.contact_force, rel=1e-6)
+
+
+def test_with_friction_the_column_bottom_holds_and_without_it_spreads_by_poisson(scene_module):
+    """Frictionless, the bottom corner of the column moves out by nu sigma / E times the half
+    width (15 um); with mu = 1 it stays."""
+    column = scene_module("scenes/validation/column.py")
+    for mu in (0.0, 1.0):
+        sim = ws.Simulator(column.build(mu=mu))
+        for _ in range(40):
+            stats = sim.step()
+        moved = sim.probe_positions()["bottom_corner"][:2] - 0.01
+        if mu == 0.0:
+            assert moved == pytest.approx([1.5e-5, 1.5e-5], rel=1e-6)
+        else:
+            assert np.abs(moved).max() < 1e-9 and stats.friction_force > 0.0
+
+
 def test_more_near_nodes_than_contact_rows_is_reported():
     scene, _ = block(capacity=4)
     sim = ws.Simulator(scene)
@@ -141,6 +187,8 @@ def test_obstacles_are_checked_and_only_declared_ones_run():
     scene, body = block()
     with pytest.raises(ws.SceneError, match="expected one of ws.obstacles"):
         scene.add_obstacle("wall", ws.shapes.Box((0, 0, 0), (1, 1, 1)))
+    with pytest.raises(ws.SceneError, match="friction coefficient mu must be >= 0"):
+        scene.add_obstacle("wall", ws.obstacles.Floor(), mu=-0.1)
     with pytest.raises(ws.SceneError, match="contact_distance must be > 0"):
         scene.add_obstacle("wall", ws.obstacles.Floor(), contact_distance=-1e-3)
     with pytest.raises(ws.SceneError, match="two obstacles are named 'floor'"):

@@ -43,7 +43,7 @@ def test_device_gauss_seidel_equals_numpy(seed):
     for w, (Ww, df, force, value, lo, hi, dmin, dmax, step, now) in enumerate(worlds):
         s, na = starts[w], counts[w]
         W[s:s + na, :na] = Ww
-        inputs[:, s:s + na] = [force, value, lo, hi, dmin, dmax, step]
+        inputs[:k.NORMAL, s:s + na] = [force, value, lo, hi, dmin, dmax, step]  # (no contact rows)
         delta_free[s:s + na], delta_now[s:s + na] = df, now
         lam0[s:s + na] = rng.uniform(-0.5, 1.0, na)
         narrowed = RowInputs(force, value, lo, hi, np.clip(dmin, now - step, now + step),
@@ -58,7 +58,8 @@ def test_device_gauss_seidel_equals_numpy(seed):
                       wp.array(delta_now, dtype=wp.float64, device=d), wp.array(inputs, dtype=wp.float64, device=d),
                       wp.array(starts[:-1], dtype=wp.int32, device=d), wp.array(np.array(counts, np.int32),
                                                                                 dtype=wp.int32, device=d),
-                      wp.ones(len(worlds), dtype=wp.int32, device=d), 1000, 1e-12],
+                      wp.ones(len(worlds), dtype=wp.int32, device=d), wp.zeros(len(lam0), dtype=wp.float64, device=d),
+                      1000, 1e-12],
               outputs=[lam, result], device=d)
     lam, result = lam.numpy(), result.numpy()
     for w, ref in enumerate(expected):

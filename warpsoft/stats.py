@@ -24,9 +24,9 @@ class WorldStats:
     inside out after the step (``det F <= 0``); ``linearization_error`` (m, m^3), how far its
     rows ended from the last linear prediction ``delta_free + W lambda``; its Newton iterations
     (linear solves) and final relative nonlinear residual (see :mod:`warpsoft.newton`); with
-    obstacles, its contacts carrying a force, their total normal force (N) and its deepest
-    penetration (m); in the direct model, how far each displacement-driven actuator is from its
-    command this step (cable m, cavity m^3)."""
+    obstacles, its contacts carrying a force, their total normal and friction forces (N, sums of
+    each contact's) and its deepest penetration (m); in the direct model, how far each
+    displacement-driven actuator is from its command this step (cable m, cavity m^3)."""
 
     cg_iterations: int = 0
     resolve_iterations: int = 0
@@ -39,6 +39,7 @@ class WorldStats:
     newton_residual: float = 0.0
     contacts: int = 0
     contact_force: float = 0.0
+    friction_force: float = 0.0
     penetration: float = 0.0
     actuator_residual: dict[str, float] = field(default_factory=dict)
     effector_error: dict[str, float] = field(default_factory=dict)
@@ -105,5 +106,6 @@ class StepStats:
     linearization_error = _of_the_world("linearization_error")
     contacts = _of_the_world("contacts")
     contact_force = _of_the_world("contact_force")
+    friction_force = _of_the_world("friction_force")
     penetration = _of_the_world("penetration")
     actuator_residual = _of_the_world("actuator_residual")

@@ -168,7 +168,7 @@ def begin(sim: Simulator, actuated: bool) -> None:
     if actuated:  # effectors alone need no column: they are measured after
         contacts = sim.rows.kind("contact") is not None
         if contacts:  # which nodes take the contact rows of this step (they stay for its iterations)
-            sim.rows.detect(q, sim.gauss_seidel.lam)
+            sim.rows.detect(q, sim.gauss_seidel.lam, sim.gauss_seidel.friction)
         # Rows are linearized where A is. Evaluated at the free configuration instead, H
         # lets a follower load (a pressure) gain energy step after step (the pneunet
         # oscillated ever wider), and delta(q_free) misses the imposed displacement by a

@@ -63,17 +63,21 @@ def inverted_elements(sim: Simulator, stats: StepStats, host: dict[str, np.ndarr
 
 
 def contacts(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarray]) -> None:
-    """A world's contacts after the step: how many, the total normal force (N), the deepest
-    penetration (m, the most negative gap); an overflow of its contact rows is a warning, once
-    per episode (the rows went to the first nodes in node order, not the nearest)."""
+    """A world's contacts after the step: how many carry a force, the total normal force and the
+    total friction force (N, the sums of each contact's), the deepest penetration (m, the most
+    negative gap); an overflow of its contact slots is a warning, once per episode (the slots
+    went to the first nodes in node order, not the nearest)."""
     rows, ws = sim.rows, stats.worlds[w]
-    block = rows.contact_rows(w)
-    used = int(host["force_rows"][w]) - int(rows.world_actuators[w])
-    gaps, lam = host["delta"][block][:used], host["lam"][block][:used]
-    ws.contacts = int(np.count_nonzero(lam > 0.0))
-    ws.contact_force = float(lam.sum())
+    rps = rows.rows_per_contact(w)
+    block = host["lam"][rows.contact_rows(w)]
+    used = (int(host["force_rows"][w]) - int(rows.world_actuators[w])) // rps
+    lam = block[:used * rps].reshape(used, rps)
+    gaps = host["delta"][rows.contact_rows(w)][:used * rps:rps]
+    ws.contacts = int(np.count_nonzero(lam[:, 0] > 0.0))
+    ws.contact_force = float(lam[:, 0].sum())
+    ws.friction_force = float(np.linalg.norm(lam[:, 1:], axis=1).sum()) if rps > 1 else 0.0
     ws.penetration = float(max(0.0, -gaps.min())) if used else 0.0
-    found, capacity = int(host["contacts_found"][w]), int(rows.world_contacts[w])
+    found, capacity = int(host["contacts_found"][w]), int(rows.world_contacts[w]) // rps
     if begins(sim, ("overflow", w), found > capacity):
         stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: {found} nodes came within contact distance "
                               f"of an obstacle, more than the scene's {capacity} contact rows: the first {capacity} "

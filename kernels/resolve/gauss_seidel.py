@@ -17,7 +17,8 @@ HI = wp.constant(3)
 DMIN = wp.constant(4)  # displacement bounds
 DMAX = wp.constant(5)
 MAX_STEP = wp.constant(6)  # bound on the change of delta in one step
-NUM_INPUTS = 7
+NORMAL = wp.constant(7)  # a contact's tangent row: how many rows before it its normal row is (1 or 2), else 0
+NUM_INPUTS = 8
 
 ITERATIONS = wp.constant(0)  # result[w, ITERATIONS]: sweeps done
 RESIDUAL = wp.constant(1)  # largest change of a row's delta in the last sweep
@@ -46,14 +47,17 @@ def projected_gauss_seidel(
     world_row_start: wp.array(dtype=wp.int32),
     world_force_rows: wp.array(dtype=wp.int32),
     direct: wp.array(dtype=wp.int32),
+    friction: wp.array(dtype=wp.float64),
     max_iterations: int,
     tolerance: wp.float64,
     lam: wp.array(dtype=wp.float64),
     result: wp.array2d(dtype=wp.float64),
 ):
     """``lam`` (per row; holds the warm start) of the force rows in use of every world whose
-    ``direct`` flag is 1 (actuators, then contacts: a contact row is force-driven at 0 within
-    ``lambda >= 0`` and ``delta >= 0``, which is Signorini's condition)."""
+    ``direct`` flag is 1 (actuators, then contacts: a contact's normal row is force-driven at 0
+    within ``lambda >= 0`` and ``delta >= 0``, which is Signorini's condition; its two tangent
+    rows, when it has friction ``mu = friction[row]``, hold the slip at 0 within
+    ``[-mu lambda_n, mu lambda_n]``, and the pair is then projected onto Coulomb's disc)."""
     w = wp.tid()
     s = world_row_start[w]
     na = world_force_rows[w] * direct[w]
@@ -72,6 +76,11 @@ def projected_gauss_seidel(
             r = s + i
             lo = inputs[LO, r]
             hi = inputs[HI, r]
+            mu = friction[r]
+            normal = int(inputs[NORMAL, r])
+            if normal > 0:  # a tangent row: Coulomb's bound from its contact's normal force now
+                cap = mu * lam[r - normal]
+                lo, hi = -cap, cap
             force = inputs[FORCE_MODE, r] != wp.float64(0.0)
             diag = W[r, i]
             new = wp.float64(0.0)
@@ -96,6 +105,15 @@ def projected_gauss_seidel(
                 new = clamp(new, lo, hi)
             change = wp.max(change, wp.abs(new - lam[r]) * wp.max(diag, wp.float64(0.0)))
             lam[r] = new
+            if normal == 2:  # the contact's second tangent: the pair into the disc |lambda_t| <= mu lambda_n
+                cap = mu * lam[r - 2]
+                norm = wp.sqrt(lam[r - 1] * lam[r - 1] + new * new)
+                if norm > cap:
+                    f = cap / norm
+                    change = wp.max(change, wp.abs(lam[r - 1]) * (wp.float64(1.0) - f) * wp.max(W[r - 1, i - 1],
+                                                                                                wp.float64(0.0)))
+                    lam[r - 1] = lam[r - 1] * f
+                    lam[r] = new * f
         sweeps = it + 1
         if change <= tolerance * scale:
             converged = wp.float64(1.0)

@@ -124,45 +124,72 @@ def mark_candidates(
     near[c] = wp.where(phi < reach[o], 1, 0)
 
 
+@wp.func
+def tangents(n: wp.vec3d):
+    """Two unit tangents that make a right-handed frame with the unit normal ``n``."""
+    e = wp.vec3d(wp.float64(1.0), wp.float64(0.0), wp.float64(0.0))
+    if wp.abs(n[0]) > wp.float64(0.9):
+        e = wp.vec3d(wp.float64(0.0), wp.float64(1.0), wp.float64(0.0))
+    t1 = wp.normalize(wp.cross(n, e))
+    return t1, wp.cross(n, t1)
+
+
 @wp.kernel
 def assign_slots(
+    q: wp.array(dtype=wp.vec3d),
     world_cand_start: wp.array(dtype=wp.int32),
     near: wp.array(dtype=wp.int32),
+    cand_node: wp.array(dtype=wp.int32),
+    cand_obstacle: wp.array(dtype=wp.int32),
+    mu: wp.array(dtype=wp.float64),
     capacity: wp.array(dtype=wp.int32),
     slot_start: wp.array(dtype=wp.int32),
     contact_row: wp.array(dtype=wp.int32),
+    rows_per_slot: wp.array(dtype=wp.int32),
     world_actuators: wp.array(dtype=wp.int32),
     slot_candidate: wp.array(dtype=wp.int32),
+    anchor: wp.array(dtype=wp.vec3d),
     found: wp.array(dtype=wp.int32),
     force_rows: wp.array(dtype=wp.int32),
     lam: wp.array(dtype=wp.float64),
-    cand_lam: wp.array(dtype=wp.float64),
+    friction: wp.array(dtype=wp.float64),
+    cand_lam: wp.array2d(dtype=wp.float64),
 ):
     """One thread per world: its near candidates take its slots in candidate order; ``found[w]``
     counts them all (more than the capacity: an overflow), ``force_rows[w]`` is the world's
-    actuator rows plus its contacts. A contact's multiplier starts from what its node and
-    obstacle carried at the last step (0 for a new contact): kept per candidate in between."""
+    actuator rows plus its contacts' rows (1 per contact, 3 with friction: normal, then two
+    tangents, whose ``friction`` is the obstacle's coefficient). A slot keeps its node's position
+    now as the anchor its tangential slip is measured from. A contact's multipliers start from
+    what its node and obstacle carried at the last step (0 for a new contact)."""
     w = wp.tid()
     cap = capacity[w]
+    rps = rows_per_slot[w]
     c0, c1 = world_cand_start[w], world_cand_start[w + 1]
     for c in range(c0, c1):
-        cand_lam[c] = wp.float64(0.0)
+        for m in range(3):
+            cand_lam[c, m] = wp.float64(0.0)
     for j in range(cap):  # the last step's contacts hand their multipliers to their candidates
         c = slot_candidate[slot_start[w] + j]
         if c >= 0:
-            cand_lam[c] = lam[contact_row[w] + j]
+            for m in range(rps):
+                cand_lam[c, m] = lam[contact_row[w] + j * rps + m]
     k = wp.int32(0)  # not int(0): ruff would fold it to a constant
     for c in range(c0, c1):
         if near[c] != 0:
             if k < cap:
                 slot_candidate[slot_start[w] + k] = c
-                lam[contact_row[w] + k] = cand_lam[c]
+                anchor[slot_start[w] + k] = q[cand_node[c]]
+                for m in range(rps):
+                    lam[contact_row[w] + k * rps + m] = cand_lam[c, m]
+                    friction[contact_row[w] + k * rps + m] = wp.where(m > 0, mu[cand_obstacle[c]], wp.float64(0.0))
             k += 1
     for j in range(k, cap):
         slot_candidate[slot_start[w] + j] = -1
-        lam[contact_row[w] + j] = wp.float64(0.0)
+        for m in range(rps):
+            lam[contact_row[w] + j * rps + m] = wp.float64(0.0)
+            friction[contact_row[w] + j * rps + m] = wp.float64(0.0)
     found[w] = k
-    force_rows[w] = world_actuators[w] + wp.min(k, cap)
+    force_rows[w] = world_actuators[w] + wp.min(k, cap) * rps
 
 
 @wp.kernel
@@ -170,6 +197,9 @@ def contact_rows(
     q: wp.array(dtype=wp.vec3d),
     slot_candidate: wp.array(dtype=wp.int32),
     slot_row: wp.array(dtype=wp.int32),
+    slot_rows: wp.array(dtype=wp.int32),
+    slot_entry: wp.array(dtype=wp.int32),
+    anchor: wp.array(dtype=wp.vec3d),
     cand_node: wp.array(dtype=wp.int32),
     cand_obstacle: wp.array(dtype=wp.int32),
     kind: wp.array(dtype=wp.int32),
@@ -183,21 +213,34 @@ def contact_rows(
     h_node: wp.array(dtype=wp.int32),
     h_coef: wp.array(dtype=wp.vec3d),
 ):
-    """Row of slot ``k`` at ``q``: the gap and its normal at the node (entry ``entry_offset + k``),
-    or an inert row for an unused slot."""
+    """The rows of slot ``k`` at ``q`` (first row ``slot_row[k]``, ``slot_rows[k]`` of them, one
+    entry each from ``entry_offset + slot_entry[k]``): the gap with the normal at the node, and
+    with friction the slip from the anchor along two tangents; an unused slot's rows are inert."""
     k = wp.tid()
-    row = slot_row[k]
-    e = entry_offset + k
-    h_row[e] = row
     c = slot_candidate[k]
-    if c < 0:
-        delta[row] = wp.float64(0.0)
-        h_node[e] = 0
-        h_coef[e] = wp.vec3d()
-        return
-    node = cand_node[c]
-    o = cand_obstacle[c]
-    phi, n = obstacle_distance(kind[o], a[o], b[o], radius[o], rot[o], q[node])
-    delta[row] = phi
-    h_node[e] = node
-    h_coef[e] = n
+    node = wp.int32(0)
+    phi = wp.float64(0.0)
+    n, t1, t2 = wp.vec3d(), wp.vec3d(), wp.vec3d()
+    if c >= 0:
+        node = cand_node[c]
+        o = cand_obstacle[c]
+        phi, n = obstacle_distance(kind[o], a[o], b[o], radius[o], rot[o], q[node])
+        t1, t2 = tangents(n)
+    slip = q[node] - anchor[k]
+    for m in range(slot_rows[k]):
+        row = slot_row[k] + m
+        e = entry_offset + slot_entry[k] + m
+        h_row[e] = row
+        h_node[e] = node
+        if c < 0:
+            delta[row] = wp.float64(0.0)
+            h_coef[e] = wp.vec3d()
+        elif m == 0:
+            delta[row] = phi
+            h_coef[e] = n
+        elif m == 1:
+            delta[row] = wp.dot(t1, slip)
+            h_coef[e] = t1
+        else:
+            delta[row] = wp.dot(t2, slip)
+            h_coef[e] = t2

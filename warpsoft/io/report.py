@@ -86,8 +86,9 @@ class RunReport:
             out["contacts"] = {"obstacles": [o.name for o in self.sim.model.scene.obstacles],
                                "count": [s.contacts for s in self.steps],
                                "normal_force": [s.contact_force for s in self.steps],
+                               "friction_force": [s.friction_force for s in self.steps],
                                "penetration": [s.penetration for s in self.steps],
-                               "units": "normal force N (the total over the contacts), penetration m"}
+                               "units": "forces N (sums over the contacts), penetration m"}
         if self.sim.model.scene.inverse:
             out["inverse"] = {"epsilon": self.sim.model.scene.inverse_epsilon,
                               "qp_status": [s.qp_status for s in self.steps],

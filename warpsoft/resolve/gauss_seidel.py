@@ -100,12 +100,20 @@ class GaussSeidel:
             for k, a in enumerate(rows.actuators[w]):
                 r = rows.world_row_start[w] + k
                 host[:, r] = [a.mode == "force", 0.0, a.min_force, a.max_force, a.min_displacement,
-                              a.max_displacement, a.max_step]
-            # a contact row: force 0 unless the gap would close, lambda >= 0 and gap >= 0 (Signorini)
-            host[:, rows.contact_rows(w)] = np.array([[1.0, 0.0, 0.0, np.inf, 0.0, np.inf, np.inf]]).T
+                              a.max_displacement, a.max_step, 0.0]
+            # a contact's rows: the normal force is 0 unless the gap would close, lambda >= 0 and
+            # gap >= 0 (Signorini); with friction, each tangent holds the slip at 0, its force
+            # bounded by Coulomb (the kernel reads mu lambda_n)
+            block = rows.contact_rows(w)
+            rps = rows.rows_per_contact(w)
+            for m in range(rps):
+                rows_m = np.arange(block.start + m, block.stop, rps)
+                host[:, rows_m] = np.array([[1.0, 0.0, 0.0, np.inf, 0.0, np.inf, np.inf, 0.0]]).T if m == 0 else \
+                    np.array([[1.0, 0.0, -np.inf, np.inf, 0.0, 0.0, np.inf, float(m)]]).T
         self.host = host
         self.inputs = wp.array(host, dtype=wp.float64, device=d)
         self.lam = wp.zeros(n, dtype=wp.float64, device=d)
+        self.friction = wp.zeros(n, dtype=wp.float64, device=d)  # mu of each contact tangent row (detection)
         self.result = wp.zeros((rows.num_worlds, 3), dtype=wp.float64, device=d)
         self.max_iterations, self.tolerance = int(max_iterations), float(tolerance)
         self._uploaded = None
@@ -126,5 +134,5 @@ class GaussSeidel:
         rows = self.rows
         wp.launch(kernels.projected_gauss_seidel, rows.num_worlds,
                   inputs=[W, delta_free, delta_now, self.inputs, rows.world_row_start_d, rows.world_force_rows,
-                          self.direct, self.max_iterations, self.tolerance],
+                          self.direct, self.friction, self.max_iterations, self.tolerance],
                   outputs=[self.lam, self.result], device=rows.device)

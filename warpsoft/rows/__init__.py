@@ -132,6 +132,11 @@ class Rows:
         s = self.actuator_rows(world).stop
         return slice(s, s + int(self.world_contacts[world]))
 
+    def rows_per_contact(self, world: int) -> int:
+        """Rows per contact slot of the world: 3 with friction (normal, two tangents), else 1."""
+        contact = self.kind("contact")
+        return int(contact.rows_per_slot_np[world]) if contact is not None else 1
+
     def effector_rows(self, world: int) -> slice:
         return slice(self.contact_rows(world).stop, int(self.world_row_start[world + 1]))
 
@@ -140,11 +145,12 @@ class Rows:
         """Actuator rows of all worlds."""
         return int(self.world_actuators.sum())
 
-    def detect(self, q: wp.array, lam: wp.array) -> None:
-        """Contacts at ``q`` (with obstacles): which nodes take the contact rows of this step."""
+    def detect(self, q: wp.array, lam: wp.array, friction: wp.array) -> None:
+        """Contacts at ``q`` (with obstacles): which nodes take the contact rows of this step,
+        their multipliers' warm starts and their tangent rows' friction coefficients."""
         contact = self.kind("contact")
         if contact is not None:
-            contact.detect(self, q, lam)
+            contact.detect(self, q, lam, friction)
 
     @property
     def effector_row_slice(self) -> slice:

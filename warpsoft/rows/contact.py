@@ -1,10 +1,12 @@
 """Contact rows: the gap between a soft body's surface nodes and the scene's rigid obstacles
-(frictionless Signorini rows: ``delta = phi(x) >= 0``, ``lambda >= 0`` the normal force (N),
-one of them zero). A world has a fixed block of ``capacity`` rows; detection, at the start of a
-step, fills the first of them with the nodes then within their obstacle's contact distance (in
-node order: deterministic); the rows are evaluated at every linearization of the step for
-those nodes, and the rest stay inert. More near nodes than rows is an overflow, reported.
-Kernels: ``kernels/rows/contact.py``.
+(Signorini: ``delta = phi(x) >= 0``, ``lambda >= 0`` the normal force (N), one of them zero) and,
+when some obstacle of the world has friction, two tangential rows per contact: the slip
+``t . (x - x_anchor)`` (m) from where the node was at the step's start, whose forces stay in
+Coulomb's cone ``|lambda_t| <= mu lambda_n``. A world has a fixed block of ``capacity`` contact
+slots (1 or 3 rows each); detection, at the start of a step, fills the first of them with the
+nodes then within their obstacle's contact distance (in node order: deterministic); the rows
+are evaluated at every linearization of the step for those nodes, and the rest stay inert. More
+near nodes than slots is an overflow, reported. Kernels: ``kernels/rows/contact.py``.
 """
 
 from __future__ import annotations
@@ -21,10 +23,12 @@ from .kind import RowKind
 
 @dataclass
 class ContactBlock:
-    """A world's block of contact rows: its obstacles and capacity (the scene's)."""
+    """A world's block of contact rows: its obstacles and capacity (the scene's) and the rows
+    per contact (3 when some obstacle has friction: the normal and two tangents, else 1)."""
 
     obstacles: list
     capacity: int
+    rows_per_contact: int
     name: str = "contacts"
 
 
@@ -40,19 +44,23 @@ class ContactRows(RowKind):
 
     @classmethod
     def items(cls, scene) -> list:
-        return [ContactBlock(list(scene.obstacles), scene.contact_capacity)] if scene.obstacles else []
+        if not scene.obstacles:
+            return []
+        rows = 3 if any(o.mu > 0 for o in scene.obstacles) else 1
+        return [ContactBlock(list(scene.obstacles), scene.contact_capacity, rows)]
 
     @staticmethod
     def row_count(item) -> int:
-        return item.capacity
+        return item.capacity * item.rows_per_contact
 
     def __init__(self, model, placed, entry_offset):
         super().__init__(model, placed, entry_offset)
         d = model.device
         worlds = model.num_worlds
-        kind, a, b, radius, rot, reach = [], [], [], [], [], []
+        kind, a, b, radius, rot, reach, mu = [], [], [], [], [], [], []
         cand_node, cand_obstacle, cand_start = [], [], [0]
-        capacity, slot_start, contact_row, slot_row = np.zeros(worlds, np.int32), [0], np.zeros(worlds, np.int32), []
+        capacity, slot_start, contact_row = np.zeros(worlds, np.int32), [0], np.zeros(worlds, np.int32)
+        rows_per_slot, slot_row, slot_rows = np.ones(worlds, np.int32), [], []
         by_world = {p.world: p for p in placed}
         for w in range(worlds):
             p = by_world.get(w)
@@ -69,19 +77,24 @@ class ContactRows(RowKind):
                         radius.append(r)
                         rot.append(R)
                         reach.append(dist)
+                        mu.append(entry.mu)
                         nodes = np.unique(info.surface)
                         cand_node.append(nodes)
                         cand_obstacle.append(np.full(len(nodes), len(kind) - 1))
-                capacity[w] = p.num_rows
+                rps = p.item.rows_per_contact
+                capacity[w], rows_per_slot[w] = p.item.capacity, rps
                 contact_row[w] = p.first_row
-                slot_row.append(np.arange(p.first_row, p.first_row + p.num_rows))
+                slot_row.append(p.first_row + rps * np.arange(p.item.capacity))
+                slot_rows.append(np.full(p.item.capacity, rps))
             cand_start.append(sum(len(c) for c in cand_node))
             slot_start.append(slot_start[-1] + int(capacity[w]))
         self.num_slots = slot_start[-1]
-        self.num_entries = self.num_slots
+        slot_rows = np.concatenate(slot_rows)
+        self.num_entries = int(slot_rows.sum())
         self.num_candidates = cand_start[-1]
         i32 = lambda v: wp.array(np.asarray(v, dtype=np.int32), dtype=wp.int32, device=d)  # noqa: E731
         self.kind, self.reach = i32(kind), wp.array(np.array(reach), dtype=wp.float64, device=d)
+        self.mu = wp.array(np.array(mu), dtype=wp.float64, device=d)
         self.a = wp.array(np.array(a), dtype=wp.vec3d, device=d)
         self.b = wp.array(np.array(b), dtype=wp.vec3d, device=d)
         self.radius = wp.array(np.array(radius), dtype=wp.float64, device=d)
@@ -91,13 +104,16 @@ class ContactRows(RowKind):
         self.world_cand_start = i32(cand_start)
         self.capacity, self.capacity_np = i32(capacity), capacity
         self.slot_start, self.contact_row = i32(slot_start), i32(contact_row)
-        self.slot_row = i32(np.concatenate(slot_row))
+        self.slot_row, self.slot_rows = i32(np.concatenate(slot_row)), i32(slot_rows)
+        self.slot_entry = i32(np.concatenate([[0], np.cumsum(slot_rows)[:-1]]))
+        self.rows_per_slot, self.rows_per_slot_np = i32(rows_per_slot), rows_per_slot
         self.near = wp.zeros(max(self.num_candidates, 1), dtype=wp.int32, device=d)
-        self.cand_lam = wp.zeros(max(self.num_candidates, 1), dtype=wp.float64, device=d)  # warm starts (N)
+        self.cand_lam = wp.zeros((max(self.num_candidates, 1), 3), dtype=wp.float64, device=d)  # warm starts (N)
+        self.anchor = wp.zeros(self.num_slots, dtype=wp.vec3d, device=d)  # where each contact's node began (m)
         self.slot_candidate = wp.full(self.num_slots, -1, dtype=wp.int32, device=d)
         self.found = wp.zeros(worlds, dtype=wp.int32, device=d)  # near nodes per world at the last detection
 
-    def detect(self, table, q: wp.array, lam: wp.array) -> None:
+    def detect(self, table, q: wp.array, lam: wp.array, friction: wp.array) -> None:
         """The nodes within contact distance at ``q`` take their world's contact rows; the
         worlds' force-row counts (actuators + contacts) follow; a contact's multiplier starts
         from its node's at the last step."""
@@ -106,12 +122,15 @@ class ContactRows(RowKind):
                   inputs=[q, self.cand_node, self.cand_obstacle, self.kind, self.a, self.b, self.radius, self.rot,
                           self.reach], outputs=[self.near], device=d)
         wp.launch(kernels.assign_slots, self.model.num_worlds,
-                  inputs=[self.world_cand_start, self.near, self.capacity, self.slot_start, self.contact_row,
+                  inputs=[q, self.world_cand_start, self.near, self.cand_node, self.cand_obstacle, self.mu,
+                          self.capacity, self.slot_start, self.contact_row, self.rows_per_slot,
                           table.world_actuators_d],
-                  outputs=[self.slot_candidate, self.found, table.world_force_rows, lam, self.cand_lam], device=d)
+                  outputs=[self.slot_candidate, self.anchor, self.found, table.world_force_rows, lam, friction,
+                           self.cand_lam], device=d)
 
     def evaluate(self, table, q) -> None:
         wp.launch(kernels.contact_rows, self.num_slots,
-                  inputs=[q, self.slot_candidate, self.slot_row, self.cand_node, self.cand_obstacle, self.kind, self.a,
-                          self.b, self.radius, self.rot, self.entry_offset],
+                  inputs=[q, self.slot_candidate, self.slot_row, self.slot_rows, self.slot_entry, self.anchor,
+                          self.cand_node, self.cand_obstacle, self.kind, self.a, self.b, self.radius, self.rot,
+                          self.entry_offset],
                   outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)

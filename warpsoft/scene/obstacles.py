@@ -182,12 +182,13 @@ class Cylinder(Obstacle):
 
 @dataclass
 class ObstacleEntry:
-    """An obstacle of a scene (use :meth:`Scene.add_obstacle`): its name, solid, and the distance
-    (m) within which a surface node becomes a contact (None: a quarter of the body's mean
-    surface edge, set when the model is built)."""
+    """An obstacle of a scene (use :meth:`Scene.add_obstacle`): its name, solid, Coulomb friction
+    coefficient with the bodies, and the distance (m) within which a surface node becomes a
+    contact (None: a quarter of the body's mean surface edge, set when the model is built)."""
 
     name: str
     shape: Obstacle
+    mu: float = 0.0
     contact_distance: float | None = None
 
 

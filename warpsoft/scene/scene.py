@@ -274,11 +274,12 @@ class Scene:
             raise SceneError(f"scene '{self.name}': Rayleigh coefficients must be >= 0, got ({a}, {b})")
         self.rayleigh_mass, self.rayleigh_stiffness = a, b
 
-    def add_obstacle(self, name: str, shape: Obstacle, contact_distance: float | None = None) -> ObstacleEntry:
+    def add_obstacle(self, name: str, shape: Obstacle, mu: float = 0.0,
+                     contact_distance: float | None = None) -> ObstacleEntry:
         """A rigid obstacle (``ws.obstacles.Floor``, ``Ball``, ``Box``, ``Capsule``, ``Cylinder``)
-        that every body's surface nodes touch, frictionless: a node closer than
-        ``contact_distance`` (m; default a quarter of the body's mean surface edge) becomes a
-        contact row that keeps it out."""
+        that every body's surface nodes touch, with Coulomb friction ``mu`` (0: frictionless): a
+        node closer than ``contact_distance`` (m; default a quarter of the body's mean surface
+        edge) becomes a contact that keeps it out (and, with friction, holds it within the cone)."""
         if not isinstance(shape, Obstacle):
             raise SceneError(f"obstacle '{name}': expected one of ws.obstacles (Floor, Ball, Box, Capsule, "
                              f"Cylinder), got {type(shape).__name__}")
@@ -288,7 +289,10 @@ class Scene:
             contact_distance = _finite(contact_distance, f"obstacle '{name}': contact_distance")
             if contact_distance <= 0:
                 raise SceneError(f"obstacle '{name}': contact_distance must be > 0 m, got {contact_distance!r}")
-        entry = ObstacleEntry(str(name), shape, contact_distance)
+        mu = _finite(mu, f"obstacle '{name}': friction coefficient mu")
+        if mu < 0:
+            raise SceneError(f"obstacle '{name}': friction coefficient mu must be >= 0, got {mu!r}")
+        entry = ObstacleEntry(str(name), shape, mu, contact_distance)
         self.obstacles.append(entry)
         return entry
 
