@@ -18,6 +18,16 @@ SLOPE = wp.constant(0)  # sums[0, w, SLOPE]: R . e, e the iteration's correction
 NUM_SUMS = 1
 
 
+@wp.func
+def row_forces(rhs: wp.array2d(dtype=wp.vec3d), lam: wp.array(dtype=wp.float64), start: int, count: int, i: int):
+    """``sum_j lambda_j H_j^T`` at node ``i`` over a world's force rows, whose columns ``H_j^T``
+    are ``rhs[1 + j]`` (N, unscaled)."""
+    f = wp.vec3d()
+    for j in range(count):
+        f = f + lam[start + j] * rhs[1 + j, i]
+    return f
+
+
 @wp.kernel
 def residual(
     v0: wp.array(dtype=wp.vec3d),
@@ -32,7 +42,7 @@ def residual(
     mass_scale: wp.float64,
     lam: wp.array(dtype=wp.float64),
     world_row_start: wp.array(dtype=wp.int32),
-    world_actuators: wp.array(dtype=wp.int32),
+    world_force_rows: wp.array(dtype=wp.int32),
     s: wp.float64,
     e: wp.array(dtype=wp.vec3d),
     world: wp.array(dtype=wp.int32),
@@ -53,10 +63,7 @@ def residual(
         b = wp.cw_mul(p, (c_v * mass[i]) * v0[i] - (mass_scale * mass[i]) * dx[i] + c_f * (f_int[i] + f_ext[i])
                       - kdx[i])
         rhs[0, i] = b
-        rows = wp.vec3d()
-        start = world_row_start[wi]
-        for j in range(world_actuators[wi]):
-            rows = rows + lam[start + j] * rhs[1 + j, i]
+        rows = row_forces(rhs, lam, world_row_start[wi], world_force_rows[wi], i)
         r = b + s * wp.cw_mul(p, rows)
         re = node_add(uniform, re, wp.dot(r, e[i]), sums, c, wi, SLOPE)
         i += wp.block_dim()
@@ -78,7 +85,7 @@ def slope(
     mask: wp.array(dtype=wp.vec3d),
     lam: wp.array(dtype=wp.float64),
     world_row_start: wp.array(dtype=wp.int32),
-    world_actuators: wp.array(dtype=wp.int32),
+    world_force_rows: wp.array(dtype=wp.int32),
     s: wp.float64,
     e: wp.array(dtype=wp.vec3d),
     world: wp.array(dtype=wp.int32),
@@ -93,10 +100,7 @@ def slope(
     i = i0 + lane
     while i < i1:
         wi = world[i]
-        f = rhs[0, i]
-        start = world_row_start[wi]
-        for j in range(world_actuators[wi]):
-            f = f + (s * lam[start + j]) * rhs[1 + j, i]
+        f = rhs[0, i] + s * row_forces(rhs, lam, world_row_start[wi], world_force_rows[wi], i)
         re = node_add(uniform, re, wp.dot(wp.cw_mul(mask[i], f), e[i]), sums, c, wi, SLOPE)
         i += wp.block_dim()
     block_add(re, lane, uniform, sums, c, w, SLOPE)

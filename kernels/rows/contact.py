@@ -18,9 +18,9 @@ CYLINDER = wp.constant(4)
 
 
 @wp.func
-def point_distance(x: wp.vec3d, c: wp.vec3d, radius: wp.float64):
-    """Distance to the point ``c`` minus ``radius``, and the outward normal."""
-    d = x - c
+def away(d: wp.vec3d, radius: wp.float64):
+    """``|d| - radius`` and the direction of ``d`` (up when ``d`` is 0): the distance to a ball
+    of ``radius`` around the point ``d`` points away from, and its outward normal."""
     length = wp.length(d)
     n = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(1.0))
     if length > wp.float64(0.0):
@@ -29,16 +29,17 @@ def point_distance(x: wp.vec3d, c: wp.vec3d, radius: wp.float64):
 
 
 @wp.func
+def point_distance(x: wp.vec3d, c: wp.vec3d, radius: wp.float64):
+    """Distance to the point ``c`` minus ``radius``, and the outward normal."""
+    return away(x - c, radius)
+
+
+@wp.func
 def segment_distance(x: wp.vec3d, a: wp.vec3d, b: wp.vec3d, radius: wp.float64):
     """Distance to the segment ``ab`` minus ``radius``, and the outward normal."""
     ab = b - a
     t = wp.clamp(wp.dot(x - a, ab) / wp.dot(ab, ab), wp.float64(0.0), wp.float64(1.0))
-    d = x - (a + t * ab)
-    length = wp.length(d)
-    n = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(1.0))
-    if length > wp.float64(0.0):
-        n = d / length
-    return length - radius, n
+    return away(x - (a + t * ab), radius)
 
 
 @wp.func
