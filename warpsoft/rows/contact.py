@@ -102,7 +102,7 @@ class ContactRows(RowKind):
         self.cand_node = i32(np.concatenate(cand_node))
         self.cand_obstacle = i32(np.concatenate(cand_obstacle))
         self.world_cand_start = i32(cand_start)
-        self.capacity, self.capacity_np = i32(capacity), capacity
+        self.capacity = i32(capacity)  # contact slots per world
         self.slot_start, self.contact_row = i32(slot_start), i32(contact_row)
         self.slot_row, self.slot_rows = i32(np.concatenate(slot_row)), i32(slot_rows)
         self.slot_entry = i32(np.concatenate([[0], np.cumsum(slot_rows)[:-1]]))
