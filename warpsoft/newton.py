@@ -27,8 +27,10 @@ the finger at ``dt = 0.5 s`` flipped between two shapes every step), the step it
   keep a step from converging: it then warns.
 
 The linearization made at the end of a step is the next step's (a device check makes it again
-if the state was changed from outside), so a step that converges at once adds only two node
-passes (the slope before and after) and, with stiffness damping, one stiffness product.
+if the state was changed from outside), so a step that converges at once adds only node passes
+(the state check, the slope before and after, the update and multipliers along ``alpha``) and,
+with stiffness damping, one stiffness product: measured 40-80 us on an H200 (3-6 % of a step)
+and 5-7 % on the CPU device (docs/performance.md).
 """
 
 from __future__ import annotations
