@@ -1,11 +1,13 @@
-"""Projected Gauss-Seidel on the actuator rows of every world: one thread per world.
+"""Projected Gauss-Seidel on the force rows of every world (actuators, then contacts): one
+thread per world.
 
-Row ``r`` of world ``w`` (``world_row_start[w] <= r < world_row_start[w] + world_actuators[w]``)
+Row ``r`` of world ``w`` (``world_row_start[w] <= r < world_row_start[w] + world_force_rows[w]``)
 has ``delta_r = delta_free_r + sum_j W[r, j] lambda_(start + j)``; displacement-driven rows
 aim at ``clip(value, dmin, dmax)``, force-driven rows impose ``lambda = value`` unless that
 leaves ``[dmin, dmax]``; ``lambda`` stays in ``[lo, hi]``. The bounds on ``delta`` are first
-narrowed to ``delta_now +- max_step`` (the change allowed in one step). The same sweep order,
-update and stopping test as ``warpsoft.resolve.gauss_seidel.projected_gauss_seidel`` (numpy).
+narrowed to ``delta_now +- max_step`` (the change allowed in one step). On actuator rows, the
+same sweep order, update and stopping test as ``warpsoft.resolve.gauss_seidel.projected_gauss_seidel``
+(numpy); a contact's two friction rows are one block (:func:`friction_pair`).
 """
 
 import warp as wp
@@ -38,6 +40,56 @@ def bounds_this_step(inputs: wp.array2d(dtype=wp.float64), delta_now: wp.array(d
     return clamp(inputs[DMIN, r], lo_step, hi_step), clamp(inputs[DMAX, r], lo_step, hi_step)
 
 
+@wp.func
+def row_delta(W: wp.array2d(dtype=wp.float64), delta_free: wp.array(dtype=wp.float64),
+              lam: wp.array(dtype=wp.float64), s: int, i: int, na: int) -> wp.float64:
+    """``delta`` of row ``s + i`` at the multipliers now: ``delta_free + sum_j W[i, j] lambda_j``."""
+    d = delta_free[s + i]
+    for j in range(na):
+        d += W[s + i, j] * lam[s + j]
+    return d
+
+
+@wp.func
+def friction_pair(W: wp.array2d(dtype=wp.float64), delta_free: wp.array(dtype=wp.float64),
+                  lam: wp.array(dtype=wp.float64), s: int, i: int, na: int, mu: wp.float64) -> wp.float64:
+    """Update the tangent rows ``i, i + 1`` of a contact whose normal row is ``i - 1`` together:
+    the forces that stop the slip if they lie in Coulomb's disc ``|lambda_t| <= mu lambda_n``
+    (sticking), else a projected step onto the disc, ``lambda_t - slip / L`` with ``L`` the
+    largest eigenvalue of the pair's ``W`` block, whose fixed point opposes the slip exactly
+    (sliding; maximal dissipation). Returns the largest change of a row's delta it made (m)."""
+    r = s + i
+    a = W[r, i]
+    b = W[r, i + 1]
+    c = W[r + 1, i + 1]
+    cap = mu * wp.max(lam[r - 1], wp.float64(0.0))
+    d1 = row_delta(W, delta_free, lam, s, i, na)
+    d2 = row_delta(W, delta_free, lam, s, i + 1, na)
+    old1 = lam[r]
+    old2 = lam[r + 1]
+    det = a * c - b * b
+    new1 = wp.float64(0.0)
+    new2 = wp.float64(0.0)
+    if det > wp.float64(0.0):  # the forces that hold both slips at 0
+        new1 = old1 - (c * d1 - b * d2) / det
+        new2 = old2 - (a * d2 - b * d1) / det
+    if det <= wp.float64(0.0) or new1 * new1 + new2 * new2 > cap * cap:  # slides: a projected step
+        big = wp.float64(0.5) * (a + c) + wp.sqrt(wp.float64(0.25) * (a - c) * (a - c) + b * b)
+        new1 = old1
+        new2 = old2
+        if big > wp.float64(0.0):
+            new1 = old1 - d1 / big
+            new2 = old2 - d2 / big
+        norm = wp.sqrt(new1 * new1 + new2 * new2)
+        if norm > cap:
+            f = cap / norm
+            new1 = new1 * f
+            new2 = new2 * f
+    lam[r] = new1
+    lam[r + 1] = new2
+    return wp.max(wp.abs(new1 - old1) * wp.max(a, wp.float64(0.0)), wp.abs(new2 - old2) * wp.max(c, wp.float64(0.0)))
+
+
 @wp.kernel
 def projected_gauss_seidel(
     W: wp.array2d(dtype=wp.float64),
@@ -56,8 +108,8 @@ def projected_gauss_seidel(
     """``lam`` (per row; holds the warm start) of the force rows in use of every world whose
     ``direct`` flag is 1 (actuators, then contacts: a contact's normal row is force-driven at 0
     within ``lambda >= 0`` and ``delta >= 0``, which is Signorini's condition; its two tangent
-    rows, when it has friction ``mu = friction[row]``, hold the slip at 0 within
-    ``[-mu lambda_n, mu lambda_n]``, and the pair is then projected onto Coulomb's disc)."""
+    rows, when it has friction ``mu = friction[row]``, are updated as one block by
+    :func:`friction_pair`: no slip inside Coulomb's disc, sliding against the slip on its rim)."""
     w = wp.tid()
     s = world_row_start[w]
     na = world_force_rows[w] * direct[w]
@@ -72,15 +124,15 @@ def projected_gauss_seidel(
     converged = wp.float64(0.0)
     for it in range(max_iterations):
         change = wp.float64(0.0)
-        for i in range(na):
+        i = wp.int32(0)
+        while i < na:
             r = s + i
+            if int(inputs[NORMAL, r]) == 1:  # a contact's two tangent rows, as one block
+                change = wp.max(change, friction_pair(W, delta_free, lam, s, i, na, friction[r]))
+                i += 2
+                continue
             lo = inputs[LO, r]
             hi = inputs[HI, r]
-            mu = friction[r]
-            normal = int(inputs[NORMAL, r])
-            if normal > 0:  # a tangent row: Coulomb's bound from its contact's normal force now
-                cap = mu * lam[r - normal]
-                lo, hi = -cap, cap
             force = inputs[FORCE_MODE, r] != wp.float64(0.0)
             diag = W[r, i]
             new = wp.float64(0.0)
@@ -90,9 +142,7 @@ def projected_gauss_seidel(
                 new = clamp(new, lo, hi)
             else:
                 dmin, dmax = bounds_this_step(inputs, delta_now, r)
-                d = delta_free[r]
-                for j in range(na):
-                    d += W[r, j] * lam[s + j]
+                d = row_delta(W, delta_free, lam, s, i, na)
                 if force:
                     new = inputs[VALUE, r]
                     d_new = d + diag * (new - lam[r])
@@ -105,15 +155,7 @@ def projected_gauss_seidel(
                 new = clamp(new, lo, hi)
             change = wp.max(change, wp.abs(new - lam[r]) * wp.max(diag, wp.float64(0.0)))
             lam[r] = new
-            if normal == 2:  # the contact's second tangent: the pair into the disc |lambda_t| <= mu lambda_n
-                cap = mu * lam[r - 2]
-                norm = wp.sqrt(lam[r - 1] * lam[r - 1] + new * new)
-                if norm > cap:
-                    f = cap / norm
-                    change = wp.max(change, wp.abs(lam[r - 1]) * (wp.float64(1.0) - f) * wp.max(W[r - 1, i - 1],
-                                                                                                wp.float64(0.0)))
-                    lam[r - 1] = lam[r - 1] * f
-                    lam[r] = new * f
+            i += 1
         sweeps = it + 1
         if change <= tolerance * scale:
             converged = wp.float64(1.0)
