@@ -81,6 +81,25 @@ def test_bad_shape_parameters_are_named():
         ws.mesh_shape(ws.shapes.Box((0, 0, 0), (1, 1, 1)), float("nan"))
 
 
+def test_refine_makes_small_elements_near_its_point_only():
+    """A refinement point: edges within its radius about its size, edges far away the mesh's;
+    the volume unchanged, every node in an element; bad refinements are named."""
+    box = ws.shapes.Box((0, 0, 0), (0.04, 0.02, 0.02))
+    plain = ws.mesh_shape(box, 0.004)
+    fine = ws.mesh_shape(box, 0.004, refine=ws.shapes.Refine((0.0, 0.0, 0.0), 0.001, 0.003))
+    edges = fine.tets[:, [0, 0, 0, 1, 1, 2]], fine.tets[:, [1, 2, 3, 2, 3, 3]]
+    x0, x1 = fine.nodes[edges[0]], fine.nodes[edges[1]]
+    length = np.linalg.norm(x1 - x0, axis=-1)
+    middle = np.linalg.norm(0.5 * (x0 + x1), axis=-1)
+    assert np.median(length[middle < 0.003]) < 0.0015 and np.median(length[middle > 0.015]) > 0.003
+    assert fine.num_elements > plain.num_elements and fine.volume == pytest.approx(plain.volume, rel=1e-9)
+    assert len(np.unique(fine.tets)) == fine.num_nodes
+    with pytest.raises(ws.SceneError, match="Refine: size -0.001 m"):
+        ws.shapes.Refine((0, 0, 0), -0.001, 0.003)
+    with pytest.raises(ws.SceneError, match="refine must be a ws.shapes.Refine, got tuple"):
+        ws.mesh_shape(box, 0.004, refine=((0, 0, 0), 0.001, 0.003))
+
+
 def test_mesh_cache_returns_the_same_mesh(tmp_path, monkeypatch):
     monkeypatch.setenv("WARPSOFT_MESH_CACHE", str(tmp_path))
     shape = ws.shapes.Box((0, 0, 0), (0.02, 0.01, 0.01)) - ws.Ball((0.01, 0.005, 0.01), 0.004)

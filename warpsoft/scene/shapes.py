@@ -125,6 +125,38 @@ class Boolean(Shape):
         return [d for d in out if d[0] == 3]
 
 
+@dataclass(frozen=True)
+class Refine:
+    """Smaller elements near a point: edge ``size`` (m) within ``radius`` (m) of ``point``, growing
+    to the mesh's size over the next ``2 radius`` (where a contact patch or a load needs them)."""
+
+    point: tuple[float, float, float]
+    size: float
+    radius: float
+
+    def __post_init__(self):
+        _check("Refine", point=self.point, size=self.size, radius=self.radius)
+        if self.size <= 0 or self.radius <= 0:
+            raise SceneError(f"Refine: size {self.size} m and radius {self.radius} m must be > 0")
+
+    def volume(self) -> float:
+        """The volume (m^3) within which elements are smaller than the mesh's size."""
+        return 4.0 / 3.0 * math.pi * (3.0 * self.radius) ** 3
+
+    def _field(self, gmsh, mesh_size: float) -> None:
+        x, y, z = (float(c) for c in self.point)
+        field = gmsh.model.mesh.field
+        distance = field.add("MathEval")  # no geometric point: it would become a node outside every element
+        field.setString(distance, "F", f"Sqrt((x-({x!r}))^2+(y-({y!r}))^2+(z-({z!r}))^2)")
+        size = field.add("Threshold")
+        field.setNumber(size, "InField", distance)
+        field.setNumber(size, "SizeMin", float(self.size))
+        field.setNumber(size, "SizeMax", mesh_size)
+        field.setNumber(size, "DistMin", float(self.radius))
+        field.setNumber(size, "DistMax", 3.0 * float(self.radius))
+        field.setAsBackgroundMesh(size)
+
+
 MAX_ELEMENTS = 1_000_000  # estimated elements above which meshing refuses (a too small mesh_size hangs gmsh)
 REGULAR_TET = 1.0 / (6.0 * math.sqrt(2.0))  # volume of a regular tetrahedron of unit edge
 
@@ -253,11 +285,12 @@ def _gmsh_fill(path: Path, mesh_size: float, scale: float, name: str, feature_an
 
 
 def mesh_shape(shape: Shape, mesh_size: float, name: str = "shape", optimize: bool = True,
-               curvature: int = 12) -> TetMesh:
+               curvature: int = 12, refine: Refine | None = None) -> TetMesh:
     """Mesh a shape with linear tetrahedra of characteristic edge length ``mesh_size`` (m).
 
     ``curvature``: elements per full turn on curved surfaces (refines small radii, down to
-    half of ``mesh_size``); 0 meshes curved and flat surfaces alike.
+    half of ``mesh_size``); 0 meshes curved and flat surfaces alike. ``refine``: smaller
+    elements around a point (:class:`Refine`).
 
     If the environment variable ``WARPSOFT_MESH_CACHE`` names a folder, meshes are kept
     there (keyed by the shape's description and the settings) and read back instead of
@@ -271,18 +304,27 @@ def mesh_shape(shape: Shape, mesh_size: float, name: str = "shape", optimize: bo
         raise SceneError(f"mesh_shape: expected a Shape, got {type(shape).__name__}{hint}")
     if not (isinstance(mesh_size, (int, float)) and math.isfinite(mesh_size) and mesh_size > 0):
         raise SceneError(f"mesh '{name}': mesh_size must be a finite number > 0 m, got {mesh_size!r}")
-    return _cached(name, f"{shape!r}|{float(mesh_size)!r}|{optimize}|{curvature}",
-                   lambda: _gmsh_mesh(shape, float(mesh_size), name, optimize, curvature))
+    if refine is not None and not isinstance(refine, Refine):
+        raise SceneError(f"mesh '{name}': refine must be a ws.shapes.Refine, got {type(refine).__name__}")
+    key = f"{shape!r}|{float(mesh_size)!r}|{optimize}|{curvature}" + (f"|{refine!r}" if refine else "")
+    return _cached(name, key, lambda: _gmsh_mesh(shape, float(mesh_size), name, optimize, curvature, refine))
 
 
-def _gmsh_mesh(shape: Shape, mesh_size: float, name: str, optimize: bool, curvature: int) -> TetMesh:
+def _gmsh_mesh(shape: Shape, mesh_size: float, name: str, optimize: bool, curvature: int,
+               refine: Refine | None) -> TetMesh:
     with _gmsh(name, "gmsh failed") as gmsh:
         vols = shape._add(gmsh.model.occ)
         gmsh.model.occ.synchronize()
         if not vols:
             raise MeshError(f"mesh '{name}': the shape has no volume (an empty boolean result?)")
-        check_size(name, sum(gmsh.model.occ.getMass(3, v) for _, v in gmsh.model.getEntities(3)), mesh_size)
-        gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5 * mesh_size)
+        volume = sum(gmsh.model.occ.getMass(3, v) for _, v in gmsh.model.getEntities(3))
+        check_size(name, volume, mesh_size)
+        smallest = 0.5 * mesh_size
+        if refine is not None and refine.size < mesh_size:
+            check_size(name, min(volume, refine.volume()), refine.size)
+            refine._field(gmsh, mesh_size)
+            smallest = min(smallest, float(refine.size))
+        gmsh.option.setNumber("Mesh.MeshSizeMin", smallest)
         gmsh.option.setNumber("Mesh.MeshSizeMax", mesh_size)
         gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", int(curvature))
         gmsh.option.setNumber("Mesh.Optimize", 1 if optimize else 0)
