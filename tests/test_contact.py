@@ -215,6 +215,81 @@ def test_with_friction_the_column_bottom_holds_and_without_it_spreads_by_poisson
             assert np.abs(moved).max() < 1e-9 and stats.friction_force > 0.0
 
 
+def test_a_moving_floor_carries_a_block_by_friction_and_slides_under_it_without():
+    """A floor that moves sideways at 5 cm/s under a block dropped from 1 mm: with friction the
+    block rides along (its lag at most the belt's travel during the fall plus what friction's
+    acceleration mu g leaves, v^2 / (2 mu g)), and rests on it; frictionless it stays where it
+    was. Signorini against the floor where it is at each step."""
+    v = 0.05
+    for mu in (0.8, 0.0):
+        scene, _ = block(capacity=128)
+        scene.obstacles.clear()
+        scene.add_obstacle("belt", ws.obstacles.Floor(), mu=mu, motion=lambda t: (v * t, 0.0, 0.0))
+        sim = ws.Simulator(scene)
+        for _ in range(60):
+            sim.step()
+            gap, lam = contact_rows(sim)
+            assert np.all(gap[:, 0] >= -1e-9) and np.all(lam[:, 0] >= 0.0)
+        bottom = sim.probe_positions()["bottom"]
+        if mu > 0:
+            lag = v * sim.time - bottom[0]
+            assert 0.0 < lag < v * np.sqrt(2 * 0.001 / G) + v * v / (2 * mu * G) and abs(bottom[1]) < 1e-6
+        else:
+            assert np.abs(bottom[:2]).max() < 1e-6
+        assert abs(bottom[2]) < 2e-5  # resting on the belt
+
+
+def test_a_ball_pushed_into_a_block_makes_room_and_a_bad_motion_is_named(tmp_path):
+    """A ball lowered 4 mm into a block held at its base: the nodes under it stay outside the ball
+    where it is at every step, and the four around its pole end on its surface; a motion that fails, or returns
+    something that is not a pose, is a SceneError that names the obstacle and the time; the
+    USD samples the moving obstacle's transform per frame."""
+    from pxr import Usd, UsdGeom
+
+    from warpsoft.io.usd import UsdWriter
+
+    scene, body = block(gravity=(0.0, 0.0, 0.0), capacity=128)
+    scene.obstacles.clear()
+    scene.fix(body, ws.OnPlane((0.0, 0.0, 0.001), (0.0, 0.0, 1.0), tol=1e-9))
+    ball = ws.obstacles.Ball((0.0, 0.0, 0.016), 0.005)
+    scene.add_obstacle("finger", ball, motion=lambda t: (0.0, 0.0, -0.02 * t))
+    sim = ws.Simulator(scene)
+    writer = UsdWriter(tmp_path / "push.usda", sim.model)
+    for _ in range(40):
+        stats = sim.step()
+        here = ball.moved(*scene.obstacles[0].pose(sim.time))
+        assert here.distance(sim.positions()).min() > -1e-9
+        writer.write_rows(stats.index, sim.constraint_geometry())
+    gap, lam = contact_rows(sim)
+    # the 4 nodes around the pole, on the ball to the second-order term of their slide over it in a step
+    assert stats.contacts == 4 and np.all(lam[:, 0] > 0.0) and np.abs(gap[:, 0]).max() < 1e-6
+    assert sim.probe_positions()["top"][2] < 0.011 - 0.0015  # the pole (between them) went down with the ball
+    writer.save()
+    stage = Usd.Stage.Open(str(tmp_path / "push.usda"))
+    mover = UsdGeom.Xformable(stage.GetPrimAtPath("/World/obstacles/finger"))
+    assert np.allclose(mover.ComputeLocalToWorldTransform(40).ExtractTranslation(), (0.0, 0.0, -0.02 * sim.time))
+    assert stage.GetPrimAtPath("/World/obstacles/finger/shape").GetTypeName() == "Sphere"
+
+    def broken(t):
+        if t > 0.01:
+            raise ValueError("off the table")
+        return (0.0, 0.0, 0.0)
+
+    scene.obstacles.clear()
+    scene.add_obstacle("finger", ball, motion=broken)
+    sim = ws.Simulator(scene)
+    with pytest.raises(ws.SceneError, match=r"obstacle 'finger': motion failed at t = 0.015 s: ValueError: off"):
+        for _ in range(4):
+            sim.step()
+    assert sim.step_index == 2  # what was done is kept
+    with pytest.raises(ws.SceneError, match=r"obstacle 'wall': motion at t = 0 s: the translation must be 3 finite"):
+        scene.add_obstacle("wall", ball, motion=lambda t: (0.0, float("nan"), 0.0))
+    with pytest.raises(ws.SceneError, match="obstacle 'wall': motion at t = 0 s: the rotation must be a 3x3 rotation"):
+        scene.add_obstacle("wall", ball, motion=lambda t: (2 * np.eye(3), (0.0, 0.0, 0.0)))
+    with pytest.raises(ws.SceneError, match="obstacle 'wall': motion must be a function of the time"):
+        scene.add_obstacle("wall", ball, motion=(0.0, 0.0, 0.0))
+
+
 def test_more_near_nodes_than_contact_rows_is_reported():
     scene, _ = block(capacity=4)
     sim = ws.Simulator(scene)

@@ -242,14 +242,16 @@ class Simulator:
 
     def constraint_geometry(self, world: int = 0) -> dict:
         """Rows of ``world`` at the current state: cable polylines (m, pull point first) by cable
-        name, effector positions and targets (m) by effector name."""
+        name, effector positions and targets (m) by effector name, and the pose
+        ``(rotation, translation)`` of each moving obstacle by name."""
         rows = self.rows
+        moving = {e.name: e.pose(self.time) for e in self.model.scenes[world].obstacles if e.motion is not None}
         if rows is None:
-            return {"cables": {}, "effectors": {}, "targets": {}}
+            return {"cables": {}, "effectors": {}, "targets": {}, "obstacles": moving}
         rows.evaluate(self.state.q)
         targets = rows.set_time(self.time)
         return {"cables": rows.cable_paths(world), "effectors": rows.effector_positions(world),
-                "targets": rows.targets(targets, world)}
+                "targets": rows.targets(targets, world), "obstacles": moving}
 
     def kinematic_jacobian(self, world: int = 0) -> np.ndarray:
         """``W_ea W_aa^-1`` of the last step: effector-axis motion (m) per unit actuator

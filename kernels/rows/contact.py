@@ -143,6 +143,8 @@ def assign_slots(
     cand_node: wp.array(dtype=wp.int32),
     cand_obstacle: wp.array(dtype=wp.int32),
     mu: wp.array(dtype=wp.float64),
+    step_rot: wp.array(dtype=wp.mat33d),
+    step_shift: wp.array(dtype=wp.vec3d),
     capacity: wp.array(dtype=wp.int32),
     slot_start: wp.array(dtype=wp.int32),
     contact_row: wp.array(dtype=wp.int32),
@@ -160,8 +162,9 @@ def assign_slots(
     counts them all (more than the capacity: an overflow), ``force_rows[w]`` is the world's
     actuator rows plus its contacts' rows (1 per contact, 3 with friction: normal, then two
     tangents, whose ``friction`` is the obstacle's coefficient). A slot keeps its node's position
-    now as the anchor its tangential slip is measured from. A contact's multipliers start from
-    what its node and obstacle carried at the last step (0 for a new contact)."""
+    now, moved with the obstacle over the step, as the anchor its tangential slip is measured
+    from. A contact's multipliers start from what its node and obstacle carried at the last
+    step (0 for a new contact)."""
     w = wp.tid()
     cap = capacity[w]
     rps = rows_per_slot[w]
@@ -179,7 +182,8 @@ def assign_slots(
         if near[c] != 0:
             if k < cap:
                 slot_candidate[slot_start[w] + k] = c
-                anchor[slot_start[w] + k] = q[cand_node[c]]
+                o = cand_obstacle[c]  # the node's place now, carried as the obstacle moves over the step
+                anchor[slot_start[w] + k] = step_rot[o] * q[cand_node[c]] + step_shift[o]
                 for m in range(rps):
                     lam[contact_row[w] + k * rps + m] = cand_lam[c, m]
                     friction[contact_row[w] + k * rps + m] = wp.where(m > 0, mu[cand_obstacle[c]], wp.float64(0.0))

@@ -55,6 +55,7 @@ class UsdWriter:
             sphere.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.2, 0.4, 0.9)]))
             self.probes[name] = sphere.AddTranslateOp()
         self.cables, self.effectors, self.targets = {}, {}, {}
+        self.movers = {}  # moving obstacle name -> its transform op (world 0)
         self._marker = 0.02 * size
         self.cavities = []  # (UsdGeom.Mesh, global node ids): the cavities' walls, seen through the body
         for w, scene in enumerate(model.scenes):
@@ -88,6 +89,11 @@ class UsdWriter:
         for w, entry in entries:
             path = f"/World/obstacles/{_name(entry.name)}" + (f"_{w}" if model.num_worlds > 1 else "")
             shape = entry.shape
+            if entry.motion is not None:  # the solid as declared, under a transform sampled per frame
+                mover = UsdGeom.Xform.Define(self.stage, path)
+                if w == 0:  # (the frames record world 0's rows)
+                    self.movers[entry.name] = mover.AddTransformOp()
+                path += "/shape"
             if isinstance(shape, ob.Floor):
                 n = np.asarray(shape.normal) / np.linalg.norm(shape.normal)
                 u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
@@ -133,7 +139,8 @@ class UsdWriter:
 
     def write_rows(self, frame: int, geometry: dict) -> None:
         """Cables as linear curves through their path, effectors (green) and targets (red)
-        as spheres, at time code ``frame`` (``geometry`` from ``Simulator.constraint_geometry``)."""
+        as spheres, moving obstacles' transforms, at time code ``frame`` (``geometry`` from
+        ``Simulator.constraint_geometry``)."""
         Gf, Vt, UsdGeom = self._Gf, self._Vt, self._UsdGeom
         for name, path in geometry["cables"].items():
             if name not in self.cables:
@@ -145,6 +152,9 @@ class UsdWriter:
                 curve.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.1, 0.1, 0.1)]))
                 self.cables[name] = curve
             self.cables[name].GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(np.asarray(path, dtype=np.float32)), frame)
+        for name, (rotation, translation) in geometry.get("obstacles", {}).items():
+            if name in self.movers:
+                self.movers[name].Set(_placement(translation, rotation, Gf), frame)
         for group, store, color in (("effectors", self.effectors, (0.1, 0.7, 0.2)),
                                     ("targets", self.targets, (0.9, 0.1, 0.1))):
             for name, p in geometry[group].items():

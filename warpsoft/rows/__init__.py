@@ -159,8 +159,11 @@ class Rows:
 
     # ---- evaluation -------------------------------------------------------------------------
     def set_time(self, t: float) -> np.ndarray | None:
-        """Upload the effector targets at time ``t``; returns them ``(effectors, 3)`` (m), in
-        table order, or None without effectors."""
+        """Upload the effector targets and the moving obstacles' poses at time ``t`` (the step's
+        end); returns the targets ``(effectors, 3)`` (m), in table order, or None without effectors."""
+        contact = self.kind("contact")
+        if contact is not None:
+            contact.set_time(t, self.model.dt)
         eff = self.kind("effector")
         return eff.set_time(t) if eff is not None else None
 

@@ -4,7 +4,8 @@ when some obstacle of the world has friction, two tangential rows per contact: t
 ``t . (x - x_anchor)`` (m) from where the node was at the step's start, whose forces stay in
 Coulomb's cone ``|lambda_t| <= mu lambda_n``. A world has a fixed block of ``capacity`` contact
 slots (1 or 3 rows each); detection, at the start of a step, fills the first of them with the
-nodes then within their obstacle's contact distance (in node order: deterministic); the rows
+nodes then within their obstacle's contact distance of where it will be at the step's end (in
+node order: deterministic); a moving obstacle carries the anchors of its contacts; the rows
 are evaluated at every linearization of the step for those nodes, and the rest stay inert. More
 near nodes than slots is an overflow, reported. Kernels: ``kernels/rows/contact.py``.
 """
@@ -58,6 +59,7 @@ class ContactRows(RowKind):
         d = model.device
         worlds = model.num_worlds
         kind, a, b, radius, rot, reach, mu = [], [], [], [], [], [], []
+        self.records = []  # the scene's obstacle entry of each (obstacle, body) record
         cand_node, cand_obstacle, cand_start = [], [], [0]
         capacity, slot_start, contact_row = np.zeros(worlds, np.int32), [0], np.zeros(worlds, np.int32)
         rows_per_slot, slot_row, slot_rows = np.ones(worlds, np.int32), [], []
@@ -67,10 +69,11 @@ class ContactRows(RowKind):
             if p is not None:
                 bodies = [info for info in model.bodies if info.world == w]
                 for entry in p.item.obstacles:
-                    k, pa, pb, r, R = entry.shape.pack()
+                    k, pa, pb, r, R = entry.at(0.0).pack()
                     for info in bodies:
                         body = next(bd for bd in model.scenes[w].bodies if bd.name == info.name)
                         dist = entry.contact_distance or 0.25 * mean_surface_edge(body.mesh)
+                        self.records.append(entry)
                         kind.append(k)
                         a.append(pa)
                         b.append(pb)
@@ -99,6 +102,11 @@ class ContactRows(RowKind):
         self.b = wp.array(np.array(b), dtype=wp.vec3d, device=d)
         self.radius = wp.array(np.array(radius), dtype=wp.float64, device=d)
         self.rot = wp.array(np.array(rot), dtype=wp.mat33d, device=d)
+        # how a point fixed to each obstacle moves over the step: x -> step_rot x + step_shift
+        self.step_rot = wp.array(np.tile(np.eye(3), (len(kind), 1, 1)), dtype=wp.mat33d, device=d)
+        self.step_shift = wp.zeros(len(kind), dtype=wp.vec3d, device=d)
+        self.moving = [i for i, e in enumerate(self.records) if e.motion is not None]
+        self._posed_at = None
         self.cand_node = i32(np.concatenate(cand_node))
         self.cand_obstacle = i32(np.concatenate(cand_obstacle))
         self.world_cand_start = i32(cand_start)
@@ -113,6 +121,24 @@ class ContactRows(RowKind):
         self.slot_candidate = wp.full(self.num_slots, -1, dtype=wp.int32, device=d)
         self.found = wp.zeros(worlds, dtype=wp.int32, device=d)  # near nodes per world at the last detection
 
+    def set_time(self, t: float, dt: float) -> None:
+        """The moving obstacles where they are at the step's end ``t`` (s), and how they moved
+        since ``t - dt``; uploaded in one copy per array, only for scenes with moving obstacles."""
+        if not self.moving or self._posed_at == t:
+            return
+        a, b, rot = self.a.numpy(), self.b.numpy(), self.rot.numpy()
+        step_rot, step_shift = self.step_rot.numpy(), self.step_shift.numpy()
+        for i in self.moving:
+            entry = self.records[i]
+            _, a[i], b[i], _, rot[i] = entry.at(t).pack()
+            (r0, p0), (r1, p1) = entry.pose(t - dt), entry.pose(t)
+            step_rot[i] = r1 @ r0.T  # x1 = r1 r0^T (x0 - p0) + p1
+            step_shift[i] = p1 - step_rot[i] @ p0
+        for array, host in ((self.a, a), (self.b, b), (self.rot, rot), (self.step_rot, step_rot),
+                            (self.step_shift, step_shift)):
+            array.assign(host)
+        self._posed_at = t
+
     def detect(self, table, q: wp.array, lam: wp.array, friction: wp.array) -> None:
         """The nodes within contact distance at ``q`` take their world's contact rows; the
         worlds' force-row counts (actuators + contacts) follow; a contact's multiplier starts
@@ -123,8 +149,8 @@ class ContactRows(RowKind):
                           self.reach], outputs=[self.near], device=d)
         wp.launch(kernels.assign_slots, self.model.num_worlds,
                   inputs=[q, self.world_cand_start, self.near, self.cand_node, self.cand_obstacle, self.mu,
-                          self.capacity, self.slot_start, self.contact_row, self.rows_per_slot,
-                          table.world_actuators_d],
+                          self.step_rot, self.step_shift, self.capacity, self.slot_start, self.contact_row,
+                          self.rows_per_slot, table.world_actuators_d],
                   outputs=[self.slot_candidate, self.anchor, self.found, table.world_force_rows, lam, friction,
                            self.cand_lam], device=d)
 

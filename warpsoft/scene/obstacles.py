@@ -6,12 +6,14 @@ normal; a soft body's surface nodes closer than a contact distance become contac
 :meth:`warpsoft.Scene.add_obstacle`; nothing is detected in a scene that declares none.
 
 Every obstacle packs into the same record for the kernels (``kernels/rows/contact.py``): a kind,
-two points ``a`` and ``b`` (m), a radius (m) and a rotation (world from local).
+two points ``a`` and ``b`` (m), a radius (m) and a rotation (world from local). An obstacle
+may move by a schedule (``motion``: a rigid pose per time); it is then packed again each step.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,6 +56,10 @@ class Obstacle:
         """Signed distance (m) of ``(n, 3)`` points: negative inside."""
         raise NotImplementedError
 
+    def moved(self, rotation: np.ndarray, translation: np.ndarray) -> Obstacle:
+        """The same solid carried by the rigid motion ``x -> rotation x + translation``."""
+        raise NotImplementedError
+
 
 @dataclass(frozen=True)
 class Floor(Obstacle):
@@ -76,6 +82,9 @@ class Floor(Obstacle):
     def distance(self, points):
         return (np.asarray(points) - np.asarray(self.point)) @ self._n
 
+    def moved(self, rotation, translation):
+        return Floor(rotation @ np.asarray(self.point) + translation, rotation @ self._n)
+
 
 @dataclass(frozen=True)
 class Ball(Obstacle):
@@ -93,6 +102,9 @@ class Ball(Obstacle):
 
     def distance(self, points):
         return np.linalg.norm(np.asarray(points) - np.asarray(self.center), axis=1) - self.radius
+
+    def moved(self, rotation, translation):
+        return Ball(rotation @ np.asarray(self.center) + translation, self.radius)
 
 
 @dataclass(frozen=True)
@@ -124,6 +136,9 @@ class Box(Obstacle):
         outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
         return outside + np.minimum(q.max(axis=1), 0.0)
 
+    def moved(self, rotation, translation):
+        return Box(rotation @ np.asarray(self.center) + translation, self.size, rotation @ np.asarray(self.rotation))
+
 
 @dataclass(frozen=True)
 class Capsule(Obstacle):
@@ -148,6 +163,10 @@ class Capsule(Obstacle):
         ab = b - a
         t = np.clip((np.asarray(points) - a) @ ab / (ab @ ab), 0.0, 1.0)
         return np.linalg.norm(np.asarray(points) - (a + t[:, None] * ab), axis=1) - self.radius
+
+    def moved(self, rotation, translation):
+        return Capsule(rotation @ np.asarray(self.a) + translation, rotation @ np.asarray(self.b) + translation,
+                       self.radius)
 
 
 @dataclass(frozen=True)
@@ -179,17 +198,52 @@ class Cylinder(Obstacle):
         q = np.stack([radial - self.radius, np.abs(along) - 0.5 * length], axis=1)
         return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
 
+    def moved(self, rotation, translation):
+        return Cylinder(rotation @ np.asarray(self.a) + translation, rotation @ np.asarray(self.b) + translation,
+                        self.radius)
+
 
 @dataclass
 class ObstacleEntry:
     """An obstacle of a scene (use :meth:`Scene.add_obstacle`): its name, solid, Coulomb friction
-    coefficient with the bodies, and the distance (m) within which a surface node becomes a
-    contact (None: a quarter of the body's mean surface edge, set when the model is built)."""
+    coefficient with the bodies, the distance (m) within which a surface node becomes a contact
+    (None: a quarter of the body's mean surface edge, set when the model is built), and its
+    motion (None: it stays where declared)."""
 
     name: str
     shape: Obstacle
     mu: float = 0.0
     contact_distance: float | None = None
+    motion: Callable[[float], object] | None = None
+
+    def pose(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(rotation 3x3, translation (3,) m)`` that carries the declared solid to where it is
+        at time ``t`` (s): the identity for a fixed obstacle."""
+        if self.motion is None:
+            return np.eye(3), np.zeros(3)
+        return pose_of(self.motion, t, f"obstacle '{self.name}': motion")
+
+    def at(self, t: float) -> Obstacle:
+        """The solid where it is at time ``t`` (s)."""
+        return self.shape if self.motion is None else self.shape.moved(*self.pose(t))
+
+
+def pose_of(motion: Callable[[float], object], t: float, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """``motion(t)`` read as a rigid pose: a translation (3 numbers, m) or a pair
+    ``(rotation 3x3, translation)``; anything else, or a failure of the user's code, is a
+    SceneError that names ``what`` and the time."""
+    try:
+        value = motion(t)
+    except Exception as exc:  # the user's schedule: say whose and when
+        raise SceneError(f"{what} failed at t = {t:g} s: {type(exc).__name__}: {exc}") from exc
+    if isinstance(value, tuple) and len(value) == 2:
+        rotation, translation = np.asarray(value[0], dtype=float), value[1]
+        if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)) or \
+                not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-9) or np.linalg.det(rotation) < 0:
+            raise SceneError(f"{what} at t = {t:g} s: the rotation must be a 3x3 rotation matrix, got {value[0]!r}")
+    else:
+        rotation, translation = np.eye(3), value
+    return rotation, _vec3(translation, f"{what} at t = {t:g} s: the translation")
 
 
 __all__ = ["Ball", "Box", "Capsule", "Cylinder", "Floor", "Obstacle", "ObstacleEntry"]

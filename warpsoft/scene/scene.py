@@ -18,7 +18,7 @@ from .cavity import Cavity
 from .effector import Effector
 from .material import Material
 from .mesh import TetMesh
-from .obstacles import Obstacle, ObstacleEntry
+from .obstacles import Obstacle, ObstacleEntry, pose_of
 from .regions import Region, as_region
 
 Vec3 = tuple[float, float, float]
@@ -274,12 +274,16 @@ class Scene:
             raise SceneError(f"scene '{self.name}': Rayleigh coefficients must be >= 0, got ({a}, {b})")
         self.rayleigh_mass, self.rayleigh_stiffness = a, b
 
-    def add_obstacle(self, name: str, shape: Obstacle, mu: float = 0.0,
-                     contact_distance: float | None = None) -> ObstacleEntry:
+    def add_obstacle(self, name: str, shape: Obstacle, mu: float = 0.0, contact_distance: float | None = None,
+                     motion: Callable[[float], object] | None = None) -> ObstacleEntry:
         """A rigid obstacle (``ws.obstacles.Floor``, ``Ball``, ``Box``, ``Capsule``, ``Cylinder``)
         that every body's surface nodes touch, with Coulomb friction ``mu`` (0: frictionless): a
         node closer than ``contact_distance`` (m; default a quarter of the body's mean surface
-        edge) becomes a contact that keeps it out (and, with friction, holds it within the cone)."""
+        edge) becomes a contact that keeps it out (and, with friction, holds it within the cone).
+
+        ``motion``: a kinematic schedule ``t -> translation`` (m) or ``t -> (rotation, translation)``
+        that carries the solid as declared to where it is at time ``t`` (s) (e.g. ``ws.waypoints``);
+        friction then holds a node still relative to the moving surface."""
         if not isinstance(shape, Obstacle):
             raise SceneError(f"obstacle '{name}': expected one of ws.obstacles (Floor, Ball, Box, Capsule, "
                              f"Cylinder), got {type(shape).__name__}")
@@ -292,7 +296,11 @@ class Scene:
         mu = _finite(mu, f"obstacle '{name}': friction coefficient mu")
         if mu < 0:
             raise SceneError(f"obstacle '{name}': friction coefficient mu must be >= 0, got {mu!r}")
-        entry = ObstacleEntry(str(name), shape, mu, contact_distance)
+        if motion is not None:
+            if not callable(motion):
+                raise SceneError(f"obstacle '{name}': motion must be a function of the time t (s), got {motion!r}")
+            pose_of(motion, 0.0, f"obstacle '{name}': motion")  # checked now, not at the first step
+        entry = ObstacleEntry(str(name), shape, mu, contact_distance, motion)
         self.obstacles.append(entry)
         return entry
 
