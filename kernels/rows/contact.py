@@ -1,4 +1,4 @@
-"""Contact rows against analytic obstacles (``warpsoft/rows/contact.py``).
+"""Contact rows against rigid obstacles, analytic or triangle meshes (``warpsoft/rows/contact.py``).
 
 A candidate is a (surface node, obstacle) pair of one world; candidates are grouped by world.
 Detection marks the candidates within their obstacle's contact distance, then gives each world's
@@ -15,6 +15,7 @@ BALL = wp.constant(1)
 BOX = wp.constant(2)
 CAPSULE = wp.constant(3)
 CYLINDER = wp.constant(4)
+MESH = wp.constant(5)
 
 
 @wp.func
@@ -92,8 +93,68 @@ def cylinder_distance(x: wp.vec3d, a: wp.vec3d, b: wp.vec3d, radius: wp.float64)
 
 
 @wp.func
-def obstacle_distance(kind: int, a: wp.vec3d, b: wp.vec3d, radius: wp.float64, rot: wp.mat33d, x: wp.vec3d):
+def triangle_closest(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> wp.vec3d:
+    """The point of triangle ``abc`` nearest to ``p``: by the Voronoi region of ``p`` (a vertex,
+    an edge, or the face), from the dot products of ``p``'s offsets with the two edges at ``a``."""
+    zero = wp.float64(0.0)
+    ab = b - a
+    ac = c - a
+    d1 = wp.dot(ab, p - a)
+    d2 = wp.dot(ac, p - a)
+    if d1 <= zero and d2 <= zero:
+        return a
+    d3 = wp.dot(ab, p - b)
+    d4 = wp.dot(ac, p - b)
+    if d3 >= zero and d4 <= d3:
+        return b
+    vc = d1 * d4 - d3 * d2
+    if vc <= zero and d1 >= zero and d3 <= zero:  # edge ab
+        return a + (d1 / (d1 - d3)) * ab
+    d5 = wp.dot(ab, p - c)
+    d6 = wp.dot(ac, p - c)
+    if d6 >= zero and d5 <= d6:
+        return c
+    vb = d5 * d2 - d1 * d6
+    if vb <= zero and d2 >= zero and d6 <= zero:  # edge ac
+        return a + (d2 / (d2 - d6)) * ac
+    va = d3 * d6 - d5 * d4
+    if va <= zero and d4 - d3 >= zero and d5 - d6 >= zero:  # edge bc
+        return b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b)
+    inv = wp.float64(1.0) / (va + vb + vc)  # the face
+    return a + ab * (vb * inv) + ac * (vc * inv)
+
+
+@wp.func
+def mesh_distance(x: wp.vec3d, origin: wp.vec3d, rot: wp.mat33d, mesh: wp.uint64, tri0: int,
+                  tri_xyz: wp.array2d(dtype=wp.vec3d)):
+    """Signed distance to a triangle mesh posed by ``(rot, origin)``, and its outward normal: the
+    BVH (single precision) finds the nearest triangle and the inside/outside sign; the distance
+    to that triangle is computed again in double from its vertices ``tri_xyz[tri0 + face]``."""
+    p = wp.transpose(rot) * (x - origin)
+    up = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(1.0))
+    query = wp.mesh_query_point_sign_normal(mesh, wp.vec3(wp.float32(p[0]), wp.float32(p[1]), wp.float32(p[2])),
+                                            wp.float32(1.0e6))
+    if not query.result:
+        return wp.float64(1.0e6), up
+    t = tri0 + query.face
+    a = tri_xyz[t, 0]
+    b = tri_xyz[t, 1]
+    c = tri_xyz[t, 2]
+    d = p - triangle_closest(p, a, b, c)
+    dist = wp.length(d)
+    sign = wp.where(query.sign < wp.float32(0.0), wp.float64(-1.0), wp.float64(1.0))
+    n = wp.normalize(wp.cross(b - a, c - a))  # on the surface itself: the face's normal
+    if dist > wp.float64(1e-14):
+        n = sign * d / dist
+    return sign * dist, rot * n
+
+
+@wp.func
+def obstacle_distance(kind: int, a: wp.vec3d, b: wp.vec3d, radius: wp.float64, rot: wp.mat33d, mesh: wp.uint64,
+                      tri0: int, tri_xyz: wp.array2d(dtype=wp.vec3d), x: wp.vec3d):
     """Signed distance (m, negative inside) of ``x`` to an obstacle, and its outward normal."""
+    if kind == MESH:  # a: its origin, rot: its rotation; its triangles from tri0 in tri_xyz
+        return mesh_distance(x, a, rot, mesh, tri0, tri_xyz)
     if kind == FLOOR:  # a: a point of its top plane, b: the upward normal
         return wp.dot(x - a, b), b
     if kind == BALL:
@@ -115,13 +176,16 @@ def mark_candidates(
     b: wp.array(dtype=wp.vec3d),
     radius: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
+    mesh: wp.array(dtype=wp.uint64),
+    tri0: wp.array(dtype=wp.int32),
+    tri_xyz: wp.array2d(dtype=wp.vec3d),
     reach: wp.array(dtype=wp.float64),
     near: wp.array(dtype=wp.int32),
 ):
     """``near[c] = 1`` when candidate ``c``'s node is within its obstacle's contact distance."""
     c = wp.tid()
     o = cand_obstacle[c]
-    phi, n = obstacle_distance(kind[o], a[o], b[o], radius[o], rot[o], q[cand_node[c]])
+    phi, n = obstacle_distance(kind[o], a[o], b[o], radius[o], rot[o], mesh[o], tri0[o], tri_xyz, q[cand_node[c]])
     near[c] = wp.where(phi < reach[o], 1, 0)
 
 
@@ -212,6 +276,9 @@ def contact_rows(
     b: wp.array(dtype=wp.vec3d),
     radius: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
+    mesh: wp.array(dtype=wp.uint64),
+    tri0: wp.array(dtype=wp.int32),
+    tri_xyz: wp.array2d(dtype=wp.vec3d),
     entry_offset: int,
     delta: wp.array(dtype=wp.float64),
     h_row: wp.array(dtype=wp.int32),
@@ -229,7 +296,7 @@ def contact_rows(
     if c >= 0:
         node = cand_node[c]
         o = cand_obstacle[c]
-        phi, n = obstacle_distance(kind[o], a[o], b[o], radius[o], rot[o], q[node])
+        phi, n = obstacle_distance(kind[o], a[o], b[o], radius[o], rot[o], mesh[o], tri0[o], tri_xyz, q[node])
         t1, t2 = tangents(n)
     slip = q[node] - anchor[k]
     for m in range(slot_rows[k]):

@@ -106,6 +106,13 @@ class UsdWriter:
                 prim.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
                 prim.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))
                 prim.CreateDoubleSidedAttr(True)
+            elif isinstance(shape, ob.Mesh):
+                prim = UsdGeom.Mesh.Define(self.stage, path)
+                prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(shape.vertices.astype(np.float32)))
+                prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(shape.triangles)))
+                prim.CreateFaceVertexIndicesAttr(Vt.IntArray(shape.triangles.ravel().tolist()))
+                prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+                prim.AddTransformOp().Set(_placement(shape.translation, shape.rotation, Gf))
             elif isinstance(shape, ob.Ball):
                 prim = UsdGeom.Sphere.Define(self.stage, path)
                 prim.CreateRadiusAttr(shape.radius)

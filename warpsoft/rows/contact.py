@@ -19,6 +19,7 @@ import warp as wp
 
 from warpsoft.kernels.rows import contact as kernels
 
+from ..scene import obstacles as ob
 from .kind import RowKind
 
 
@@ -102,6 +103,7 @@ class ContactRows(RowKind):
         self.b = wp.array(np.array(b), dtype=wp.vec3d, device=d)
         self.radius = wp.array(np.array(radius), dtype=wp.float64, device=d)
         self.rot = wp.array(np.array(rot), dtype=wp.mat33d, device=d)
+        self._meshes(d)
         # how a point fixed to each obstacle moves over the step: x -> step_rot x + step_shift
         self.step_rot = wp.array(np.tile(np.eye(3), (len(kind), 1, 1)), dtype=wp.mat33d, device=d)
         self.step_shift = wp.zeros(len(kind), dtype=wp.vec3d, device=d)
@@ -120,6 +122,30 @@ class ContactRows(RowKind):
         self.anchor = wp.zeros(self.num_slots, dtype=wp.vec3d, device=d)  # where each contact's node began (m)
         self.slot_candidate = wp.full(self.num_slots, -1, dtype=wp.int32, device=d)
         self.found = wp.zeros(worlds, dtype=wp.int32, device=d)  # near nodes per world at the last detection
+
+    def _meshes(self, device) -> None:
+        """Each mesh obstacle's BVH (``wp.Mesh``, single precision, kept alive here) and its
+        triangles' vertices in double; analytic records get id 0 and no triangles."""
+        self.bvh, ids, tri0, xyz, made = [], [], [], [], {}
+        count = 0
+        for entry in self.records:
+            shape = entry.shape
+            if not isinstance(shape, ob.Mesh):
+                ids.append(0)
+                tri0.append(0)
+                continue
+            if id(shape) not in made:  # one BVH per obstacle, shared by the bodies that touch it
+                bvh = wp.Mesh(points=wp.array(shape.vertices, dtype=wp.vec3, device=device),
+                              indices=wp.array(shape.triangles.ravel(), dtype=wp.int32, device=device))
+                self.bvh.append(bvh)
+                made[id(shape)] = (bvh.id, count)
+                xyz.append(shape.vertices[shape.triangles])
+                count += len(shape.triangles)
+            ids.append(made[id(shape)][0])
+            tri0.append(made[id(shape)][1])
+        self.mesh = wp.array(np.array(ids, dtype=np.uint64), dtype=wp.uint64, device=device)
+        self.tri0 = wp.array(np.array(tri0, dtype=np.int32), dtype=wp.int32, device=device)
+        self.tri_xyz = wp.array(np.concatenate(xyz) if xyz else np.zeros((1, 3, 3)), dtype=wp.vec3d, device=device)
 
     def set_time(self, t: float, dt: float) -> None:
         """The moving obstacles where they are at the step's end ``t`` (s), and how they moved
@@ -146,7 +172,7 @@ class ContactRows(RowKind):
         d = self.model.device
         wp.launch(kernels.mark_candidates, self.num_candidates,
                   inputs=[q, self.cand_node, self.cand_obstacle, self.kind, self.a, self.b, self.radius, self.rot,
-                          self.reach], outputs=[self.near], device=d)
+                          self.mesh, self.tri0, self.tri_xyz, self.reach], outputs=[self.near], device=d)
         wp.launch(kernels.assign_slots, self.model.num_worlds,
                   inputs=[q, self.world_cand_start, self.near, self.cand_node, self.cand_obstacle, self.mu,
                           self.step_rot, self.step_shift, self.capacity, self.slot_start, self.contact_row,
@@ -158,5 +184,5 @@ class ContactRows(RowKind):
         wp.launch(kernels.contact_rows, self.num_slots,
                   inputs=[q, self.slot_candidate, self.slot_row, self.slot_rows, self.slot_entry, self.anchor,
                           self.cand_node, self.cand_obstacle, self.kind, self.a, self.b, self.radius, self.rot,
-                          self.entry_offset],
+                          self.mesh, self.tri0, self.tri_xyz, self.entry_offset],
                   outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import SceneError
 
-FLOOR, BALL, BOX, CAPSULE, CYLINDER = range(5)  # kinds, as the kernels know them
+FLOOR, BALL, BOX, CAPSULE, CYLINDER, MESH = range(6)  # kinds, as the kernels know them
 
 
 def _vec3(value, what: str) -> np.ndarray:
@@ -203,6 +203,120 @@ class Cylinder(Obstacle):
                         self.radius)
 
 
+@dataclass(frozen=True, eq=False)
+class Mesh(Obstacle):
+    """A rigid surface of triangles: ``vertices`` ``(k, 3)`` (m) and ``triangles`` ``(m, 3)``
+    (vertex ids), oriented with their normals (right-hand rule) pointing out of the solid. A
+    closed surface bounds a solid (negative distance inside); an open one (a terrain) is a
+    surface whose back is inside. On the device the nearest triangle comes from a BVH
+    (``wp.Mesh``) and the distance to it is computed again in double precision.
+    :meth:`load` reads a surface file (STL, OBJ, ...)."""
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    rotation: np.ndarray | None = None  # the pose that carries it (set by moved(); identity as declared)
+    translation: np.ndarray | None = None
+
+    def __post_init__(self):
+        try:
+            v = np.array(self.vertices, dtype=float)
+            t = np.array(self.triangles, dtype=np.int64)
+        except (TypeError, ValueError):
+            raise SceneError("Mesh: vertices must be (k, 3) numbers and triangles (m, 3) vertex ids") from None
+        if v.ndim != 2 or v.shape[1] != 3 or not np.all(np.isfinite(v)):
+            raise SceneError(f"Mesh: vertices must be (k, 3) finite numbers (m), got shape {v.shape}")
+        if t.ndim != 2 or t.shape[1] != 3 or len(t) == 0:
+            raise SceneError(f"Mesh: needs at least one triangle, (m, 3) vertex ids; got shape {t.shape}")
+        if t.min() < 0 or t.max() >= len(v):
+            raise SceneError(f"Mesh: triangle vertex ids must be in [0, {len(v)}), got {t.min()}..{t.max()}")
+        areas = 0.5 * np.linalg.norm(np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]]), axis=1)
+        if np.any(areas <= 1e-12 * max(np.ptp(v, axis=0).max(), 1e-300) ** 2):
+            raise SceneError(f"Mesh: {int(np.sum(areas <= 0))} or more triangles have no area (repeated vertices?)")
+        r = np.eye(3) if self.rotation is None else np.asarray(self.rotation, dtype=float)
+        p = np.zeros(3) if self.translation is None else _vec3(self.translation, "Mesh.translation")
+        for name, value in (("vertices", v), ("triangles", t), ("rotation", r), ("translation", p)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def load(cls, path, scale: float = 1.0) -> Mesh:
+        """The triangles of a surface file (meshio: STL, OBJ, PLY, ...), coordinates times
+        ``scale`` (e.g. 1e-3 for a file in millimetres)."""
+        import meshio
+
+        try:
+            data = meshio.read(str(path))
+        except Exception as exc:
+            raise SceneError(f"Mesh.load: cannot read {str(path)!r}: {exc}") from None
+        tris = [c.data for c in data.cells if c.type == "triangle"]
+        if not tris:
+            raise SceneError(f"Mesh.load: {str(path)!r} has no triangles")
+        return cls(float(scale) * np.asarray(data.points, dtype=float)[:, :3], np.concatenate(tris))
+
+    def closed(self) -> bool:
+        """Whether every edge is shared by exactly two triangles (a surface that bounds a solid)."""
+        edges = np.sort(self.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        _, counts = np.unique(edges, axis=0, return_counts=True)
+        return bool(np.all(counts == 2))
+
+    def pack(self):
+        return MESH, self.translation.copy(), np.zeros(3), 0.0, self.rotation.copy()
+
+    def moved(self, rotation, translation):
+        r = rotation @ self.rotation
+        return Mesh(self.vertices, self.triangles, r, rotation @ self.translation + translation)
+
+    def distance(self, points):
+        """Signed distance (brute force over the triangles, for checks): the sign from the
+        winding number for a closed surface, from the nearest triangle's side for an open one."""
+        x = (np.asarray(points, dtype=float) - self.translation) @ self.rotation  # into the declared frame
+        tri = self.vertices[self.triangles]
+        closest = closest_on_triangles(x, tri)  # (n, m, 3)
+        d2 = np.sum((x[:, None, :] - closest) ** 2, axis=2)
+        nearest = np.argmin(d2, axis=1)
+        dist = np.sqrt(d2[np.arange(len(x)), nearest])
+        if self.closed():
+            return np.where(winding_numbers(x, tri) > 0.5, -dist, dist)
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[nearest]
+        side = np.einsum("ij,ij->i", x - closest[np.arange(len(x)), nearest], normal)
+        return np.where(side < 0, -dist, dist)
+
+
+def closest_on_triangles(x: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """The point of each triangle ``tri`` ``(m, 3, 3)`` nearest to each point ``x`` ``(n, 3)``:
+    ``(n, m, 3)`` (the regions of the triangle's plane: inside, then each edge, then each vertex)."""
+    a, b, c = (tri[None, :, k, :] for k in range(3))
+    p = x[:, None, :]
+    n = np.cross(b - a, c - a)
+    inside = p - np.einsum("nmk,nmk->nm", p - a, n)[..., None] * n / np.einsum("nmk,nmk->nm", n, n)[..., None]
+    within = np.ones(inside.shape[:2], dtype=bool)
+    for u, v in ((a, b), (b, c), (c, a)):  # the plane's projection counts when it is left of every edge
+        within &= np.einsum("nmk,nmk->nm", np.cross(v - u, inside - u), n) >= 0
+    candidates = [np.where(within[..., None], inside, np.inf)]
+    for u, v in ((a, b), (b, c), (c, a)):
+        e = v - u
+        t = np.clip(np.einsum("nmk,nmk->nm", p - u, e) / np.einsum("nmk,nmk->nm", e, e), 0.0, 1.0)
+        candidates.append(u + t[..., None] * e)
+    d = np.stack([np.sum((p - q) ** 2, axis=2) for q in candidates])
+    d = np.where(np.isnan(d), np.inf, d)
+    pick = np.argmin(d, axis=0)
+    stacked = np.stack([np.broadcast_to(q, inside.shape) for q in candidates])
+    return np.take_along_axis(stacked, pick[None, ..., None], axis=0)[0]
+
+
+def winding_numbers(x: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Generalized winding number of closed triangles ``(m, 3, 3)`` at points ``(n, 3)``: 1
+    inside, 0 outside (van Oosterom and Strackee's solid angle)."""
+    r = tri[None, :, :, :] - x[:, None, None, :]
+    lengths = np.linalg.norm(r, axis=3)
+    a, b, c = r[:, :, 0], r[:, :, 1], r[:, :, 2]
+    la, lb, lc = lengths[:, :, 0], lengths[:, :, 1], lengths[:, :, 2]
+    num = np.einsum("nmk,nmk->nm", a, np.cross(b, c))
+    den = la * lb * lc + np.einsum("nmk,nmk->nm", a, b) * lc + np.einsum("nmk,nmk->nm", b, c) * la \
+        + np.einsum("nmk,nmk->nm", c, a) * lb
+    return np.sum(2.0 * np.arctan2(num, den), axis=1) / (4.0 * np.pi)
+
+
 @dataclass
 class ObstacleEntry:
     """An obstacle of a scene (use :meth:`Scene.add_obstacle`): its name, solid, Coulomb friction
@@ -246,4 +360,4 @@ def pose_of(motion: Callable[[float], object], t: float, what: str) -> tuple[np.
     return rotation, _vec3(translation, f"{what} at t = {t:g} s: the translation")
 
 
-__all__ = ["Ball", "Box", "Capsule", "Cylinder", "Floor", "Obstacle", "ObstacleEntry"]
+__all__ = ["Ball", "Box", "Capsule", "Cylinder", "Floor", "Mesh", "Obstacle", "ObstacleEntry"]

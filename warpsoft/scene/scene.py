@@ -276,7 +276,7 @@ class Scene:
 
     def add_obstacle(self, name: str, shape: Obstacle, mu: float = 0.0, contact_distance: float | None = None,
                      motion: Callable[[float], object] | None = None) -> ObstacleEntry:
-        """A rigid obstacle (``ws.obstacles.Floor``, ``Ball``, ``Box``, ``Capsule``, ``Cylinder``)
+        """A rigid obstacle (``ws.obstacles.Floor``, ``Ball``, ``Box``, ``Capsule``, ``Cylinder``, ``Mesh``)
         that every body's surface nodes touch, with Coulomb friction ``mu`` (0: frictionless): a
         node closer than ``contact_distance`` (m; default a quarter of the body's mean surface
         edge) becomes a contact that keeps it out (and, with friction, holds it within the cone).
@@ -286,7 +286,7 @@ class Scene:
         friction then holds a node still relative to the moving surface."""
         if not isinstance(shape, Obstacle):
             raise SceneError(f"obstacle '{name}': expected one of ws.obstacles (Floor, Ball, Box, Capsule, "
-                             f"Cylinder), got {type(shape).__name__}")
+                             f"Cylinder, Mesh), got {type(shape).__name__}")
         if any(o.name == name for o in self.obstacles):
             raise SceneError(f"scene '{self.name}': two obstacles are named '{name}'")
         if contact_distance is not None:
