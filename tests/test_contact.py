@@ -377,7 +377,8 @@ def test_obstacles_are_checked_and_only_declared_ones_run():
     scene.inverse = True
     scene.add_cable("c", body, points=[(0.0, 0.0, 0.006)], pull_point=(-0.02, 0.0, 0.006))
     scene.add_effector("e", (0.0, 0.0, 0.011), target=(0.0, 0.0, 0.012))
-    with pytest.raises(ws.SceneError, match="inverse model with contacts"):
+    scene.add_obstacle("rough", ws.obstacles.Ball((0.0, 0.0, 0.05), 0.01), mu=0.2)
+    with pytest.raises(ws.SceneError, match="inverse model takes frictionless contacts only"):
         ws.Simulator(scene)
     plain, _ = block()
     plain.obstacles.clear()

@@ -131,7 +131,11 @@ class Simulator:
         inverse_worlds = [w for w, s in enumerate(m.scenes) if s.inverse and self.rows is not None
                           and self.rows.world_actuators[w]]
         small = bool(inverse_worlds) and max(self.rows.world_actuators[w] for w in inverse_worlds) <= AUTO_DEVICE_QP
-        if inverse_worlds and (qp == "device" or (qp == "auto" and d.is_cuda and small)):
+        touching = [w for w in inverse_worlds if m.scenes[w].obstacles]  # their QPCC runs on the host
+        if touching and qp == "device":
+            raise SceneError(f"Simulator: qp='device' has no contacts, but inverse world {touching[0]} has "
+                             "obstacles (its QPCC runs on the host); use qp='piqp' or 'auto'")
+        if inverse_worlds and not touching and (qp == "device" or (qp == "auto" and d.is_cuda and small)):
             self.device_inverse = DeviceInverse(self.rows, m.scenes, self.effector_weights)
             if not self.device_inverse.usable:
                 raise SceneError(f"Simulator: qp='device' takes at most {NMAX} actuators per world, got "
@@ -173,7 +177,8 @@ class Simulator:
                 if self.device_inverse is not None:
                     after["qp"] = self.device_inverse.result
                 self.before_qp = Readback({"W": self.rows.W, "delta_free": self.rows.delta_free,
-                                           "delta": self.newton.delta_start, "lam": gs.lam}, d)
+                                           "delta": self.newton.delta_start, "lam": gs.lam,
+                                           "force_rows": self.rows.world_force_rows}, d)
             contact = self.rows.kind("contact")
             if contact is not None:
                 after["contacts_found"] = contact.found

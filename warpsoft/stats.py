@@ -18,7 +18,8 @@ class WorldStats:
     """One world's share of a step: the iterations of its linear solve (when the solver counts
     them per world), its multipliers' resolution (Gauss-Seidel sweeps and last change, or the
     QP status and time in s: 0 for the device QP, which runs inside the step's graph and gives
-    its active-set iterations as ``resolve_iterations``), and its rows after the step by name:
+    its active-set iterations as ``resolve_iterations``; with contacts, the QPCC's pivots on its
+    contact set, ``qp_pivots``), and its rows after the step by name:
     actuator ``delta`` (cable m, cavity m^3) and ``lambda`` (N, Pa), effector positions and
     targets (m) and the distance between them on the controlled axes (m); its elements turned
     inside out after the step (``det F <= 0``); ``linearization_error`` (m, m^3), how far its
@@ -33,6 +34,7 @@ class WorldStats:
     resolve_residual: float = 0.0
     qp_status: str = ""
     qp_seconds: float = 0.0
+    qp_pivots: int = 0
     inverted_elements: int = 0
     linearization_error: float = 0.0
     newton_iterations: int = 0
@@ -97,6 +99,7 @@ class StepStats:
     resolve_residual = _of_the_world("resolve_residual")
     qp_status = _of_the_world("qp_status")
     qp_seconds = _of_the_world("qp_seconds")
+    qp_pivots = _of_the_world("qp_pivots")
     effector_error = _of_the_world("effector_error")
     actuator_delta = _of_the_world("actuator_delta")
     actuator_lambda = _of_the_world("actuator_lambda")

@@ -23,6 +23,7 @@ from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
 from . import watch
 from .errors import SceneError, SimulationError
 from .resolve import RowInputs, solve_inverse
+from .resolve.qpcc import ContactQP, solve_inverse_contacts
 from .state import Control
 from .stats import ConvergenceWarning, StepStats, WorldStats
 
@@ -312,8 +313,9 @@ def resolve_on_device(sim: Simulator) -> None:
 
 
 def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
-    """Inverse-model worlds: a QP each on the host, from ``W``, ``delta_free``, ``delta`` and
-    ``lambda`` read in one transfer (``host``); the multipliers go back in one copy."""
+    """Inverse-model worlds: a QP each on the host (a QPCC where contacts were detected), from
+    ``W``, ``delta_free``, ``delta`` and ``lambda`` read in one transfer (``host``); the
+    multipliers go back in one copy."""
     rows, gs, scenes = sim.rows, sim.gauss_seidel, sim.model.scenes
     W, dfree, delta, lam = host["W"], host["delta_free"], host["delta"], host["lam"]
     for w, scene in enumerate(scenes):
@@ -321,9 +323,21 @@ def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray
             continue
         a, e = rows.actuator_rows(w), rows.effector_rows(w)
         na = a.stop - a.start
-        res = solve_inverse(W[a, :na], W[e, :na], dfree[a], dfree[e], row_inputs(gs.host, sim.values, delta, a),
-                            sim.effector_weights[w], lam[a], scene.inverse_epsilon)
-        lam[a] = res.lam
+        inputs = row_inputs(gs.host, sim.values, delta, a)
+        touching = int(host["force_rows"][w]) - na  # the contacts detected this step
+        if touching > 0:  # a QPCC: the contacts' forces with the actuation
+            c = np.arange(rows.contact_rows(w).start, rows.contact_rows(w).start + touching)
+            ids = np.concatenate([np.arange(a.start, a.stop), c, np.arange(e.start, e.stop)])
+            qp = ContactQP(W[ids, :na + touching], dfree[ids], np.arange(na), na + np.arange(touching),
+                           na + touching + np.arange(e.stop - e.start), inputs, sim.effector_weights[w],
+                           scene.inverse_epsilon)
+            res = solve_inverse_contacts(qp, lam[a])
+            lam[a], lam[c] = res.lam_a, res.lam_c
+            stats.worlds[w].qp_pivots = res.pivots
+        else:
+            res = solve_inverse(W[a, :na], W[e, :na], dfree[a], dfree[e], inputs, sim.effector_weights[w], lam[a],
+                                scene.inverse_epsilon)
+            lam[a] = res.lam
         stats.worlds[w].qp_status, stats.worlds[w].qp_seconds = res.status, res.seconds
         if res.warning:
             stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: {res.warning}")

@@ -93,6 +93,8 @@ class RunReport:
             out["inverse"] = {"epsilon": self.sim.model.scene.inverse_epsilon,
                               "qp_status": [s.qp_status for s in self.steps],
                               "qp_seconds": [s.qp_seconds for s in self.steps]}
+            if self.sim.model.scene.obstacles:  # the QPCC's pivots on the contact set
+                out["inverse"]["qp_pivots"] = [s.qp_pivots for s in self.steps]
         return out
 
     def to_dict(self) -> dict:

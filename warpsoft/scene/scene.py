@@ -331,9 +331,11 @@ class Scene:
                     )
             elif body.material.density <= 0 and not body.overrides:
                 raise SceneError(f"scene '{self.name}': dynamic body '{body.name}' has density 0 (no mass)")
-        if self.inverse and self.obstacles:
-            raise SceneError(f"scene '{self.name}': the inverse model with contacts (a QP with complementarity "
-                             "constraints) is not built yet; use the direct model with obstacles")
+        rough = [o.name for o in self.obstacles if o.mu > 0]
+        if self.inverse and rough:
+            raise SceneError(f"scene '{self.name}': the inverse model takes frictionless contacts only (its QPCC has "
+                             f"no friction rows), but obstacle '{rough[0]}' has mu > 0; set "
+                             "mu=0.0 or use the direct model")
         if self.inverse:
             if not self.actuators:
                 raise SceneError(f"scene '{self.name}': the inverse model needs at least one actuator")
