@@ -2,7 +2,8 @@
 running to the tip and four to the middle, controlled by the inverse model. It lies along +x
 from its clamped base (gravity along -z). Its tip sweeps sideways while pointing straight
 ahead (a second effector, the "neck" behind the tip, moves sideways with it): a single bend
-would turn the tip, so the trunk must take an S-shape."""
+would turn the tip, so the trunk must take an S-shape. With ``obstacles=True`` it sweeps between
+two posts that it touches (the paper's Trunk with contacts)."""
 
 import math
 
@@ -14,11 +15,15 @@ import warpsoft as ws
 def build(length=0.195, base_radius=0.013, tip_radius=0.005, young_modulus=450e3, poisson_ratio=0.45,
           total_mass=0.042, gravity=9.81, dt=0.02, rayleigh_mass=0.1, rayleigh_stiffness=0.02, mesh_size=0.006,
           sweep=0.025, period=4.0, target=None, neck=0.85, max_long=0.07, max_short=0.04, max_step=0.001,
-          static=False):
+          static=False, obstacles=False, post_radius=0.008, post_x=0.13, post_gap=0.004):
     """Cables shorten by at most ``max_long`` / ``max_short`` (m) and ``max_step`` (m) per step
     (SoftRobots: 70 mm, 40 mm, 1 mm). ``target`` (x, y, z) (m) fixes the tip alone; by default
     the tip and the neck (at ``neck * length``) follow ``y = sweep sin(2 pi t / period)``,
-    ``z = 0`` (their x is left free). ``static=True``: quasi-static steps (``dt`` is pseudo-time)."""
+    ``z = 0`` (their x is left free). ``static=True``: quasi-static steps (``dt`` is pseudo-time).
+
+    ``obstacles=True``: two upright rigid posts of ``post_radius`` (m) at ``x = post_x``, one on
+    each side, ``post_gap`` (m) from the trunk's surface at rest; the sweep presses the trunk
+    against them and the inverse model (a QPCC) steers the tip around what they hold."""
     shape = ws.Cone((0.0, 0.0, 0.0), (length, 0.0, 0.0), base_radius, tip_radius)
     scene = ws.Scene("trunk", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=int(round(period / dt)))
     trunk = scene.add_body("trunk", ws.mesh_shape(shape, mesh_size, name="trunk"),
@@ -38,6 +43,11 @@ def build(length=0.195, base_radius=0.013, tip_radius=0.005, young_modulus=450e3
             pull = tuple(np.array([-0.01, 0.0, 0.0]) + share * base_radius * u)
             scene.add_cable(f"{kind}{k}", trunk, points=points, pull_point=pull, min_displacement=0.0,
                             max_displacement=bound, max_step=max_step)
+    if obstacles:  # frictionless: the inverse model's contacts have no friction rows
+        side = radius(post_x) + post_gap + post_radius
+        for name, y in (("left_post", side), ("right_post", -side)):
+            scene.add_obstacle(name, ws.obstacles.Cylinder((post_x, y, -0.04), (post_x, y, 0.04), post_radius))
+        scene.set_contacts(64)
     if target is not None:
         scene.add_effector("tip", (length, 0.0, 0.0), target=target)
     else:

@@ -40,12 +40,13 @@ SCENES = [
     ("diamond_inverse_softrobots_mesh", "scenes/diamond.py",  # SoftRobots.Inverse's own mesh: 4884 DOFs
      {"mode": "inverse", "mesh": str(ROOT.parent / "shared" / "reference" / "softrobots" / "diamond.vtk")}),
     ("trunk", "scenes/trunk.py", {}),
+    ("trunk_obstacles", "scenes/trunk.py", {"obstacles": True}),  # between two posts: contacts, QPCC
     # the finger at a time step too large for one linearization: what its Newton iterations cost
     ("finger_dt_0.5", "scenes/finger.py", {"dt": 0.5}),
 ]
 
 # SOFA SoftRobots, Table 1 of Coevoet et al. 2017 (Intel i5-4590, one thread), ms per step
-PAPER_MS = {"diamond_inverse": 22.0, "diamond_inverse_softrobots_mesh": 22.0, "trunk": 29.0}
+PAPER_MS = {"diamond_inverse": 22.0, "diamond_inverse_softrobots_mesh": 22.0, "trunk": 29.0, "trunk_obstacles": 29.0}
 
 # v1 and v2 per device: the solver (and options) each release used by default there
 CONFIGS = {
@@ -130,6 +131,7 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
         sim.solver.graph = graph
     sim.capture = capture
     m, cs = sim.model, sim.rows
+    detection = detection_cost(sim, stats)
     stages = sorted({k for s in stats for k in s.stages})
     d = wp.get_device(device)
     peak = wp.get_mempool_used_mem_high(d) if d.is_cuda and wp.is_mempool_enabled(d) else None
@@ -137,7 +139,9 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
         "scene": name, "params": params, "device": str(m.device), "solver": sim.solver_name,
         "options": {k: v for k, v in options.items() if v is not None},
         "dofs": m.num_dofs, "elements": m.num_elements,
-        "actuators": cs.num_actuators if cs is not None else 0, "contacts": 0,
+        "actuators": cs.num_actuators if cs is not None else 0,
+        "contacts": [int(np.median([s.contacts for s in stats])), int(max(s.contacts for s in stats))],
+        "detection": detection, "qp_pivots": int(sum(s.qp_pivots for s in stats)),
         "model": "inverse" if scene.inverse else "direct", "static": m.static,
         "step_ms": {k: 1e3 * v for k, v in percentiles([s.total for s in stats]).items() if k != "count"},
         "stages_ms": {k: 1e3 * float(np.median([s.stages.get(k, 0.0) for s in stats])) for k in stages},
@@ -151,6 +155,27 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
         "refreshes": getattr(getattr(sim.solver, "precond", None), "refreshes", None),
         "steps": steps, "warmup": warmup, "kernels": kernels,
     }
+
+
+def detection_cost(sim: Simulator, stats: list) -> dict | None:
+    """Contact detection alone (median of 20, synchronized): its time (us), per candidate (a
+    surface node against an obstacle) and per contact found (the steps' median)."""
+    import warp as wp
+
+    table = sim.rows.kind("contact") if sim.rows is not None else None
+    if table is None:
+        return None
+    times = []
+    for _ in range(20):
+        wp.synchronize_device(sim.model.device)
+        t0 = time.perf_counter()
+        sim.rows.detect(sim.state.q, sim.gauss_seidel.lam, sim.gauss_seidel.friction)
+        wp.synchronize_device(sim.model.device)
+        times.append(time.perf_counter() - t0)
+    us = 1e6 * float(np.median(times))
+    contacts = max(float(np.median([s.contacts for s in stats])), 1.0)
+    return {"us": us, "candidates": table.num_candidates, "us_per_candidate": us / max(table.num_candidates, 1),
+            "us_per_contact": us / contacts}
 
 
 def markdown(rows: list[dict]) -> str:
@@ -175,6 +200,14 @@ def markdown(rows: list[dict]) -> str:
         for n, a, b in pairs:
             out.append(f"| {n} | {a['step_ms']['median']:.2f} | {b['step_ms']['median']:.2f} | "
                        f"{a['step_ms']['median'] / b['step_ms']['median']:.1f} |")
+    touching = [r for r in rows if r.get("detection")]
+    if touching:
+        out += ["", "| scene | config | contacts (median / most) | QPCC pivots | detection (us) | candidates "
+                "| us per candidate | us per contact |", "|---|---|---|---|---|---|---|---|"]
+        for r in touching:
+            d = r["detection"]
+            out.append(f"| {r['scene']} | {r['config']} | {r['contacts'][0]} / {r['contacts'][1]} | {r['qp_pivots']} | "
+                       f"{d['us']:.0f} | {d['candidates']} | {d['us_per_candidate']:.3f} | {d['us_per_contact']:.1f} |")
     return "\n".join(out) + "\n"
 
 
