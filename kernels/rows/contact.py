@@ -93,43 +93,48 @@ def cylinder_distance(x: wp.vec3d, a: wp.vec3d, b: wp.vec3d, radius: wp.float64)
 
 
 @wp.func
-def triangle_closest(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) -> wp.vec3d:
-    """The point of triangle ``abc`` nearest to ``p``: by the Voronoi region of ``p`` (a vertex,
-    an edge, or the face), from the dot products of ``p``'s offsets with the two edges at ``a``."""
+def triangle_closest(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
+    """The point of triangle ``abc`` nearest to ``p``, and whether it lies inside the face (not on
+    an edge or a vertex): by the Voronoi region of ``p``, from the dot products of ``p``'s
+    offsets with the two edges at ``a``."""
     zero = wp.float64(0.0)
     ab = b - a
     ac = c - a
     d1 = wp.dot(ab, p - a)
     d2 = wp.dot(ac, p - a)
     if d1 <= zero and d2 <= zero:
-        return a
+        return a, False
     d3 = wp.dot(ab, p - b)
     d4 = wp.dot(ac, p - b)
     if d3 >= zero and d4 <= d3:
-        return b
+        return b, False
     vc = d1 * d4 - d3 * d2
     if vc <= zero and d1 >= zero and d3 <= zero:  # edge ab
-        return a + (d1 / (d1 - d3)) * ab
+        return a + (d1 / (d1 - d3)) * ab, False
     d5 = wp.dot(ab, p - c)
     d6 = wp.dot(ac, p - c)
     if d6 >= zero and d5 <= d6:
-        return c
+        return c, False
     vb = d5 * d2 - d1 * d6
     if vb <= zero and d2 >= zero and d6 <= zero:  # edge ac
-        return a + (d2 / (d2 - d6)) * ac
+        return a + (d2 / (d2 - d6)) * ac, False
     va = d3 * d6 - d5 * d4
     if va <= zero and d4 - d3 >= zero and d5 - d6 >= zero:  # edge bc
-        return b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b)
+        return b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b), False
     inv = wp.float64(1.0) / (va + vb + vc)  # the face
-    return a + ab * (vb * inv) + ac * (vc * inv)
+    return a + ab * (vb * inv) + ac * (vc * inv), True
 
 
 @wp.func
 def mesh_distance(x: wp.vec3d, origin: wp.vec3d, rot: wp.mat33d, mesh: wp.uint64, tri0: int,
                   tri_xyz: wp.array2d(dtype=wp.vec3d)):
     """Signed distance to a triangle mesh posed by ``(rot, origin)``, and its outward normal: the
-    BVH (single precision) finds the nearest triangle and the inside/outside sign; the distance
-    to that triangle is computed again in double from its vertices ``tri_xyz[tri0 + face]``."""
+    BVH (single precision) finds the nearest triangle; the distance to it is computed again in
+    double from its vertices ``tri_xyz[tri0 + face]``. Nearest to the face's inside, the distance
+    is to its plane, signed by its outward normal (exact even on the surface, where the offset's
+    own direction is rounding noise); nearest to an edge or a vertex, the BVH's angle-weighted
+    pseudo-normal gives the sign and the offset the normal (the face's within 1e-6 of an edge's
+    length of the surface)."""
     p = wp.transpose(rot) * (x - origin)
     up = wp.vec3d(wp.float64(0.0), wp.float64(0.0), wp.float64(1.0))
     query = wp.mesh_query_point_sign_normal(mesh, wp.vec3(wp.float32(p[0]), wp.float32(p[1]), wp.float32(p[2])),
@@ -140,12 +145,15 @@ def mesh_distance(x: wp.vec3d, origin: wp.vec3d, rot: wp.mat33d, mesh: wp.uint64
     a = tri_xyz[t, 0]
     b = tri_xyz[t, 1]
     c = tri_xyz[t, 2]
-    d = p - triangle_closest(p, a, b, c)
+    n = wp.normalize(wp.cross(b - a, c - a))
+    closest, inside_face = triangle_closest(p, a, b, c)
+    if inside_face:
+        return wp.dot(p - a, n), rot * n
+    d = p - closest
     dist = wp.length(d)
     sign = wp.where(query.sign < wp.float32(0.0), wp.float64(-1.0), wp.float64(1.0))
-    n = wp.normalize(wp.cross(b - a, c - a))  # on the surface itself: the face's normal
-    if dist > wp.float64(1e-14):
-        n = sign * d / dist
+    if dist > wp.float64(1e-6) * wp.length(b - a):  # nearer, the offset's direction is rounding noise:
+        n = sign * d / dist  # (the face's normal then, and the sign within single precision of the surface)
     return sign * dist, rot * n
 
 
