@@ -112,12 +112,13 @@ def test_usd_draws_the_cavity_walls_moving_with_the_body(tmp_path):
 
 def test_obstacles_are_drawn_and_contacts_reported(tmp_path):
     """The column on its floor from the CLI: the report gives the contacts and their total normal
-    force per step; the USD holds the floor as a square through its top plane."""
+    force per step; the USD holds the floor as a square through its top plane, and with
+    --usd-contacts the contact points and their forces."""
     from pxr import Usd, UsdGeom
 
     usd, rep = tmp_path / "column.usda", tmp_path / "column.json"
     assert main(["run", str(ROOT / "scenes/validation/column.py"), "--steps", "12", "--usd", str(usd),
-                 "--report", str(rep), "--quiet"]) == 0
+                 "--usd-contacts", "--report", str(rep), "--quiet"]) == 0
     d = json.loads(rep.read_text())
     assert d["contacts"]["obstacles"] == ["floor"] and min(d["contacts"]["count"]) > 10
     assert d["contacts"]["normal_force"][-1] == pytest.approx(0.05, rel=1e-4)  # the quarter column's load
@@ -126,6 +127,14 @@ def test_obstacles_are_drawn_and_contacts_reported(tmp_path):
     floor = UsdGeom.Mesh(stage.GetPrimAtPath("/World/obstacles/floor"))
     corners = np.array(floor.GetPointsAttr().Get())
     assert corners.shape == (4, 3) and np.abs(corners[:, 2]).max() < 1e-9 and np.ptp(corners[:, 0]) > 0.1
+    # --usd-contacts: each frame's contact points on the floor, their forces adding up to the load
+    points = UsdGeom.Points(stage.GetPrimAtPath("/World/contacts/points"))
+    at = np.array(points.GetPointsAttr().Get(12))
+    force = np.array(UsdGeom.PrimvarsAPI(points).GetPrimvar("force").Get(12))
+    assert at.shape == force.shape and len(at) >= d["contacts"]["count"][-1] and np.abs(at[:, 2]).max() < 1e-6
+    assert force.sum(axis=0) == pytest.approx([0.0, 0.0, 0.05], abs=1e-5)
+    segments = np.array(UsdGeom.BasisCurves(stage.GetPrimAtPath("/World/contacts/forces")).GetPointsAttr().Get(12))
+    assert len(segments) == 2 * len(at) and np.all(segments[1::2, 2] >= segments[0::2, 2])  # drawn upwards
 
 
 def test_usd_places_turned_and_long_obstacles(tmp_path):

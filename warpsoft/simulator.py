@@ -247,16 +247,21 @@ class Simulator:
 
     def constraint_geometry(self, world: int = 0) -> dict:
         """Rows of ``world`` at the current state: cable polylines (m, pull point first) by cable
-        name, effector positions and targets (m) by effector name, and the pose
-        ``(rotation, translation)`` of each moving obstacle by name."""
+        name, effector positions and targets (m) by effector name, the pose
+        ``(rotation, translation)`` of each moving obstacle by name, and with obstacles the
+        contacts in use: ``(points (k, 3) m, forces (k, 3) N)``, the force on the body."""
         rows = self.rows
         moving = {e.name: e.pose(self.time) for e in self.model.scenes[world].obstacles if e.motion is not None}
         if rows is None:
             return {"cables": {}, "effectors": {}, "targets": {}, "obstacles": moving}
         rows.evaluate(self.state.q)
         targets = rows.set_time(self.time)
-        return {"cables": rows.cable_paths(world), "effectors": rows.effector_positions(world),
-                "targets": rows.targets(targets, world), "obstacles": moving}
+        out = {"cables": rows.cable_paths(world), "effectors": rows.effector_positions(world),
+               "targets": rows.targets(targets, world), "obstacles": moving}
+        contact = rows.kind("contact")
+        if contact is not None:
+            out["contacts"] = contact.forces(rows, world, self.state.q.numpy(), self.gauss_seidel.lam.numpy())
+        return out
 
     def kinematic_jacobian(self, world: int = 0) -> np.ndarray:
         """``W_ea W_aa^-1`` of the last step: effector-axis motion (m) per unit actuator

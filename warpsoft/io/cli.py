@@ -26,6 +26,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--steps", type=int, default=None, help="number of steps (default: the scene's)")
     r.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:0 (default: Warp's default)")
     r.add_argument("--usd", default=None, help="write a USD animation (.usda text or .usdc binary)")
+    r.add_argument("--usd-contacts", action="store_true",
+                   help="with --usd: also the contact points and their forces, per frame")
     r.add_argument("--report", default=None, help="write a JSON report")
     r.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
                    help="scene parameter; VALUE is a Python or JSON literal (repeatable)")
@@ -88,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
         rep = run(scene, steps=args.steps, device=args.device, usd=args.usd, report=args.report,
                   solver=args.solver, tolerance=args.tolerance, progress=not args.quiet, scene_file=args.scene,
                   flush_every=args.flush_every, newton_iterations=args.newton_iterations,
-                  newton_tolerance=args.newton_tolerance)
+                  newton_tolerance=args.newton_tolerance, usd_contacts=args.usd_contacts)
     except WarpsoftError as exc:
         print(f"warpsoft: error: {exc}", file=sys.stderr)
         return 2

@@ -151,9 +151,10 @@ def stop_on_signals():
 def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: str | Path | None = None,
         report: str | Path | None = None, solver: str = "auto", tolerance: float = 1e-6, progress: bool = False,
         scene_file: str | None = None, flush_every: int = 50, newton_iterations: int = 10,
-        newton_tolerance: float = 0.1) -> RunReport:
+        newton_tolerance: float = 0.1, usd_contacts: bool = False) -> RunReport:
     """Simulate ``steps`` steps (the scene's default if None), optionally writing USD and a JSON report.
-    ``newton_iterations`` and ``newton_tolerance`` are the :class:`Simulator`'s.
+    ``newton_iterations`` and ``newton_tolerance`` are the :class:`Simulator`'s; ``usd_contacts``
+    adds each frame's contact points and forces to the USD.
 
     Outputs are checked before anything runs, and written as the run goes (every
     ``flush_every`` steps and at its end), so a run that fails, is interrupted (SIGINT, SIGTERM) or
@@ -178,7 +179,7 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
     if usd is not None:
         from .usd import UsdWriter
 
-        writer = UsdWriter(usd, sim.model)
+        writer = UsdWriter(usd, sim.model, contacts=usd_contacts)
         writer.write_frame(0, sim.state.positions(), sim.probe_positions())
         writer.write_rows(0, sim.constraint_geometry())
 

@@ -1,5 +1,6 @@
 """USD export: one stage per run, time-sampled body surfaces, cavity walls, cables, probe,
-effector and target spheres, and the obstacles (each kind under a typed Scope)."""
+effector and target spheres, the obstacles (each kind under a typed Scope) and, when asked,
+the contacts (points with their forces)."""
 
 from __future__ import annotations
 
@@ -16,9 +17,13 @@ class UsdWriter:
 
     Frame ``k`` (time code ``k``) holds the state after step ``k``; frame 0 the initial state.
     Stage metadata: ``upAxis = Z``, ``metersPerUnit = 1``, ``timeCodesPerSecond = 1 / dt``.
+    ``contacts=True``: each frame's contacts (world 0) as points, ``/World/contacts/points``,
+    with their force on the body (N) in the primvar ``force``, and drawn as segments
+    ``/World/contacts/forces`` from each point (their length: the largest force of the first
+    frame with contacts is a tenth of the model's size).
     """
 
-    def __init__(self, path: str | Path, model: Model):
+    def __init__(self, path: str | Path, model: Model, contacts: bool = False):
         from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
         self._Gf, self._Vt, self._UsdGeom = Gf, Vt, UsdGeom
@@ -56,6 +61,17 @@ class UsdWriter:
             self.probes[name] = sphere.AddTranslateOp()
         self.cables, self.effectors, self.targets = {}, {}, {}
         self.movers = {}  # moving obstacle name -> its transform op (world 0)
+        self.contacts, self._newtons_to_m, self._size = None, None, size
+        if contacts:
+            self._group("/World/contacts")
+            points = UsdGeom.Points.Define(self.stage, "/World/contacts/points")
+            points.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.95, 0.75, 0.1)]))
+            force = UsdGeom.PrimvarsAPI(points).CreatePrimvar("force", Sdf.ValueTypeNames.Vector3fArray,
+                                                              UsdGeom.Tokens.vertex)
+            arrows = UsdGeom.BasisCurves.Define(self.stage, "/World/contacts/forces")
+            arrows.CreateTypeAttr(UsdGeom.Tokens.linear)
+            arrows.CreateDisplayColorAttr(Vt.Vec3fArray([Gf.Vec3f(0.95, 0.75, 0.1)]))
+            self.contacts = (points, force, arrows)
         self._marker = 0.02 * size
         self.cavities = []  # (UsdGeom.Mesh, global node ids): the cavities' walls, seen through the body
         for w, scene in enumerate(model.scenes):
@@ -162,6 +178,8 @@ class UsdWriter:
         for name, (rotation, translation) in geometry.get("obstacles", {}).items():
             if name in self.movers:
                 self.movers[name].Set(_placement(translation, rotation, Gf), frame)
+        if self.contacts is not None and "contacts" in geometry:
+            self._write_contacts(frame, *geometry["contacts"])
         for group, store, color in (("effectors", self.effectors, (0.1, 0.7, 0.2)),
                                     ("targets", self.targets, (0.9, 0.1, 0.1))):
             for name, p in geometry[group].items():
@@ -169,6 +187,21 @@ class UsdWriter:
                     self._group(f"/World/{group}")
                     store[name] = self._sphere(f"/World/{group}/{_name(name)}", color)
                 store[name].Set(Gf.Vec3d(*np.asarray(p, dtype=float).tolist()), frame)
+
+    def _write_contacts(self, frame: int, points: np.ndarray, forces: np.ndarray) -> None:
+        """The contacts of a frame: points ``(k, 3)`` (m), forces on the body ``(k, 3)`` (N)."""
+        Vt = self._Vt
+        prim, force, arrows = self.contacts
+        largest = float(np.linalg.norm(forces, axis=1).max(initial=0.0))
+        if self._newtons_to_m is None and largest > 0.0:  # fixed from the first frame that has a force
+            self._newtons_to_m = 0.1 * self._size / largest
+        scale = self._newtons_to_m or 0.0
+        f32 = lambda a: Vt.Vec3fArray.FromNumpy(np.asarray(a, dtype=np.float32).reshape(-1, 3))  # noqa: E731
+        prim.GetPointsAttr().Set(f32(points), frame)
+        prim.GetWidthsAttr().Set(Vt.FloatArray([0.4 * self._marker] * len(points)), frame)
+        force.Set(f32(forces), frame)
+        arrows.GetPointsAttr().Set(f32(np.stack([points, points + scale * forces], axis=1)), frame)
+        arrows.GetCurveVertexCountsAttr().Set(Vt.IntArray([2] * len(points)), frame)
 
     def write_frame(self, frame: int, q: np.ndarray, probes: dict[str, np.ndarray]) -> None:
         """Store positions ``q`` ``(n, 3)`` (m) and probe positions at time code ``frame``."""

@@ -165,6 +165,21 @@ class ContactRows(RowKind):
             array.assign(host)
         self._posed_at = t
 
+    def forces(self, table, world: int, q: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The world's contacts in use (host): their nodes' positions ``(k, 3)`` (m) from ``q``
+        and the force the obstacle puts on each ``(k, 3)`` (N: ``sum_m lambda_m H_m``, the normal
+        force along the normal, friction along the tangents) from the multipliers ``lam``."""
+        start = int(self.slot_start.numpy()[world])
+        cap = int(self.capacity.numpy()[world])
+        slots = self.slot_candidate.numpy()[start:start + cap]
+        used = int(np.count_nonzero(slots >= 0))
+        rps = int(self.rows_per_slot_np[world])
+        rows = int(self.contact_row.numpy()[world]) + np.arange(used * rps)
+        entries = self.entry_offset + self.slot_entry.numpy()[start:start + used, None] + np.arange(rps)
+        coef = table.h_coef.numpy()[entries.ravel()].reshape(used, rps, 3)
+        force = np.einsum("km,kmi->ki", lam[rows].reshape(used, rps), coef)
+        return q[self.cand_node.numpy()[slots[:used]]], force
+
     def detect(self, table, q: wp.array, lam: wp.array, friction: wp.array) -> None:
         """The nodes within contact distance at ``q`` take their world's contact rows; the
         worlds' force-row counts (actuators + contacts) follow; a contact's multiplier starts
