@@ -10,7 +10,8 @@ literals). For each scene: probe trajectories of (a) ``direct`` on the CPU devic
 with the step's device part replayed as graphs, (c) ``pcg`` on CUDA launched kernel by kernel,
 (d) ``pcg`` on CUDA with a float32 dense inverse; the largest probe differences (m) between them,
 and the median CG iterations and the most Newton iterations of a step (the finger at dt = 0.5 s
-iterates: its graphs of later iterations and line searches are checked too). Then the three
+iterates: its graphs of later iterations and line searches are checked too; Hertz and the
+Trunk between two posts check contacts, the latter the QPCC around the graphs). Then the three
 worlds of tests/test_worlds.py (an inverse Diamond, an inverse Trunk, a Diamond driven
 directly) on CUDA, together and alone. Writes gpu_check.json.
 """
@@ -31,7 +32,7 @@ from warpsoft.io.runner import build_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ["scenes/finger.py", "scenes/trunk.py", "scenes/diamond.py", "scenes/finger.py:dt=0.5,mesh_size=0.005",
-          "scenes/validation/column.py"]
+          "scenes/validation/column.py", "scenes/validation/hertz.py", "scenes/trunk.py:obstacles=True,period=1.0"]
 RUNS = {
     "cpu_direct": ("cpu", "direct", {}),
     "cuda_pcg_graph": ("cuda", "pcg", {}),
