@@ -174,27 +174,44 @@ def obstacle_distance(kind: int, a: wp.vec3d, b: wp.vec3d, radius: wp.float64, r
     return cylinder_distance(x, a, b, radius)
 
 
+@wp.struct
+class Obstacles:
+    """Every (obstacle, body) record of the model, one entry each: its kind, two points ``a``,
+    ``b`` (m), radius (m) and rotation (world from local), as ``obstacle_distance`` reads them;
+    for a mesh its BVH id and first triangle in ``tri_xyz`` (all meshes' triangles, ``(t, 3)``
+    vertices in double); ``reach`` the contact distance (m)."""
+
+    kind: wp.array(dtype=wp.int32)
+    a: wp.array(dtype=wp.vec3d)
+    b: wp.array(dtype=wp.vec3d)
+    radius: wp.array(dtype=wp.float64)
+    rot: wp.array(dtype=wp.mat33d)
+    mesh: wp.array(dtype=wp.uint64)
+    tri0: wp.array(dtype=wp.int32)
+    tri_xyz: wp.array2d(dtype=wp.vec3d)
+    reach: wp.array(dtype=wp.float64)
+
+
+@wp.func
+def record_distance(obstacles: Obstacles, o: int, x: wp.vec3d):
+    """``obstacle_distance`` of record ``o``."""
+    return obstacle_distance(obstacles.kind[o], obstacles.a[o], obstacles.b[o], obstacles.radius[o], obstacles.rot[o],
+                             obstacles.mesh[o], obstacles.tri0[o], obstacles.tri_xyz, x)
+
+
 @wp.kernel
 def mark_candidates(
     q: wp.array(dtype=wp.vec3d),
     cand_node: wp.array(dtype=wp.int32),
     cand_obstacle: wp.array(dtype=wp.int32),
-    kind: wp.array(dtype=wp.int32),
-    a: wp.array(dtype=wp.vec3d),
-    b: wp.array(dtype=wp.vec3d),
-    radius: wp.array(dtype=wp.float64),
-    rot: wp.array(dtype=wp.mat33d),
-    mesh: wp.array(dtype=wp.uint64),
-    tri0: wp.array(dtype=wp.int32),
-    tri_xyz: wp.array2d(dtype=wp.vec3d),
-    reach: wp.array(dtype=wp.float64),
+    obstacles: Obstacles,
     near: wp.array(dtype=wp.int32),
 ):
     """``near[c] = 1`` when candidate ``c``'s node is within its obstacle's contact distance."""
     c = wp.tid()
     o = cand_obstacle[c]
-    phi, n = obstacle_distance(kind[o], a[o], b[o], radius[o], rot[o], mesh[o], tri0[o], tri_xyz, q[cand_node[c]])
-    near[c] = wp.where(phi < reach[o], 1, 0)
+    phi, n = record_distance(obstacles, o, q[cand_node[c]])
+    near[c] = wp.where(phi < obstacles.reach[o], 1, 0)
 
 
 @wp.func
@@ -279,14 +296,7 @@ def contact_rows(
     anchor: wp.array(dtype=wp.vec3d),
     cand_node: wp.array(dtype=wp.int32),
     cand_obstacle: wp.array(dtype=wp.int32),
-    kind: wp.array(dtype=wp.int32),
-    a: wp.array(dtype=wp.vec3d),
-    b: wp.array(dtype=wp.vec3d),
-    radius: wp.array(dtype=wp.float64),
-    rot: wp.array(dtype=wp.mat33d),
-    mesh: wp.array(dtype=wp.uint64),
-    tri0: wp.array(dtype=wp.int32),
-    tri_xyz: wp.array2d(dtype=wp.vec3d),
+    obstacles: Obstacles,
     entry_offset: int,
     delta: wp.array(dtype=wp.float64),
     h_row: wp.array(dtype=wp.int32),
@@ -304,7 +314,7 @@ def contact_rows(
     if c >= 0:
         node = cand_node[c]
         o = cand_obstacle[c]
-        phi, n = obstacle_distance(kind[o], a[o], b[o], radius[o], rot[o], mesh[o], tri0[o], tri_xyz, q[node])
+        phi, n = record_distance(obstacles, o, q[node])
         t1, t2 = tangents(n)
     slip = q[node] - anchor[k]
     for m in range(slot_rows[k]):

@@ -108,6 +108,9 @@ class ContactRows(RowKind):
         self.step_rot = wp.array(np.tile(np.eye(3), (len(kind), 1, 1)), dtype=wp.mat33d, device=d)
         self.step_shift = wp.zeros(len(kind), dtype=wp.vec3d, device=d)
         self.moving = [i for i, e in enumerate(self.records) if e.motion is not None]
+        self.obstacles = kernels.Obstacles()  # the records as the kernels take them (the same arrays)
+        for name in ("kind", "a", "b", "radius", "rot", "mesh", "tri0", "tri_xyz", "reach"):
+            setattr(self.obstacles, name, getattr(self, name))
         self._posed_at = None
         self.cand_node = i32(np.concatenate(cand_node))
         self.cand_obstacle = i32(np.concatenate(cand_obstacle))
@@ -186,8 +189,7 @@ class ContactRows(RowKind):
         from its node's at the last step."""
         d = self.model.device
         wp.launch(kernels.mark_candidates, self.num_candidates,
-                  inputs=[q, self.cand_node, self.cand_obstacle, self.kind, self.a, self.b, self.radius, self.rot,
-                          self.mesh, self.tri0, self.tri_xyz, self.reach], outputs=[self.near], device=d)
+                  inputs=[q, self.cand_node, self.cand_obstacle, self.obstacles], outputs=[self.near], device=d)
         wp.launch(kernels.assign_slots, self.model.num_worlds,
                   inputs=[q, self.world_cand_start, self.near, self.cand_node, self.cand_obstacle, self.mu,
                           self.step_rot, self.step_shift, self.capacity, self.slot_start, self.contact_row,
@@ -198,6 +200,5 @@ class ContactRows(RowKind):
     def evaluate(self, table, q) -> None:
         wp.launch(kernels.contact_rows, self.num_slots,
                   inputs=[q, self.slot_candidate, self.slot_row, self.slot_rows, self.slot_entry, self.anchor,
-                          self.cand_node, self.cand_obstacle, self.kind, self.a, self.b, self.radius, self.rot,
-                          self.mesh, self.tri0, self.tri_xyz, self.entry_offset],
+                          self.cand_node, self.cand_obstacle, self.obstacles, self.entry_offset],
                   outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)
