@@ -125,6 +125,10 @@ class ContactRows(RowKind):
         self.anchor = wp.zeros(self.num_slots, dtype=wp.vec3d, device=d)  # where each contact's node began (m)
         self.slot_candidate = wp.full(self.num_slots, -1, dtype=wp.int32, device=d)
         self.found = wp.zeros(worlds, dtype=wp.int32, device=d)  # near nodes per world at the last detection
+        # host copies, read once: what set_time rewrites for moving obstacles, and the slot layout
+        self.host = {name: getattr(self, name).numpy().copy() for name in (
+            "a", "b", "rot", "step_rot", "step_shift", "slot_start", "capacity", "contact_row", "slot_entry",
+            "cand_node")}
 
     def _meshes(self, device) -> None:
         """Each mesh obstacle's BVH (``wp.Mesh``, single precision, kept alive here) and its
@@ -155,8 +159,8 @@ class ContactRows(RowKind):
         since ``t - dt``; uploaded in one copy per array, only for scenes with moving obstacles."""
         if not self.moving or self._posed_at == t:
             return
-        a, b, rot = self.a.numpy(), self.b.numpy(), self.rot.numpy()
-        step_rot, step_shift = self.step_rot.numpy(), self.step_shift.numpy()
+        h = self.host
+        a, b, rot, step_rot, step_shift = h["a"], h["b"], h["rot"], h["step_rot"], h["step_shift"]
         for i in self.moving:
             entry = self.records[i]
             _, a[i], b[i], _, rot[i] = entry.at(t).pack()
@@ -172,16 +176,16 @@ class ContactRows(RowKind):
         """The world's contacts in use (host): their nodes' positions ``(k, 3)`` (m) from ``q``
         and the force the obstacle puts on each ``(k, 3)`` (N: ``sum_m lambda_m H_m``, the normal
         force along the normal, friction along the tangents) from the multipliers ``lam``."""
-        start = int(self.slot_start.numpy()[world])
-        cap = int(self.capacity.numpy()[world])
+        h = self.host
+        start, cap = int(h["slot_start"][world]), int(h["capacity"][world])
         slots = self.slot_candidate.numpy()[start:start + cap]
         used = int(np.count_nonzero(slots >= 0))
         rps = int(self.rows_per_slot_np[world])
-        rows = int(self.contact_row.numpy()[world]) + np.arange(used * rps)
-        entries = self.entry_offset + self.slot_entry.numpy()[start:start + used, None] + np.arange(rps)
+        rows = int(h["contact_row"][world]) + np.arange(used * rps)
+        entries = self.entry_offset + h["slot_entry"][start:start + used, None] + np.arange(rps)
         coef = table.h_coef.numpy()[entries.ravel()].reshape(used, rps, 3)
         force = np.einsum("km,kmi->ki", lam[rows].reshape(used, rps), coef)
-        return q[self.cand_node.numpy()[slots[:used]]], force
+        return q[h["cand_node"][slots[:used]]], force
 
     def detect(self, table, q: wp.array, lam: wp.array, friction: wp.array) -> None:
         """The nodes within contact distance at ``q`` take their world's contact rows; the

@@ -237,6 +237,9 @@ class Mesh(Obstacle):
         for name, value in (("vertices", v), ("triangles", t), ("rotation", r), ("translation", p)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
+        edges = np.sort(t[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        _, counts = np.unique(edges, axis=0, return_counts=True)
+        object.__setattr__(self, "_closed", bool(np.all(counts == 2)))
 
     @classmethod
     def load(cls, path, scale: float = 1.0) -> Mesh:
@@ -255,16 +258,20 @@ class Mesh(Obstacle):
 
     def closed(self) -> bool:
         """Whether every edge is shared by exactly two triangles (a surface that bounds a solid)."""
-        edges = np.sort(self.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-        _, counts = np.unique(edges, axis=0, return_counts=True)
-        return bool(np.all(counts == 2))
+        return self._closed
 
     def pack(self):
         return MESH, self.translation.copy(), np.zeros(3), 0.0, self.rotation.copy()
 
     def moved(self, rotation, translation):
-        r = rotation @ self.rotation
-        return Mesh(self.vertices, self.triangles, r, rotation @ self.translation + translation)
+        """The same triangles under a new pose, without checking them again (a moving obstacle
+        is moved every step)."""
+        copy = object.__new__(Mesh)
+        for name in ("vertices", "triangles", "_closed"):
+            object.__setattr__(copy, name, getattr(self, name))
+        object.__setattr__(copy, "rotation", rotation @ self.rotation)
+        object.__setattr__(copy, "translation", rotation @ self.translation + translation)
+        return copy
 
     def distance(self, points):
         """Signed distance (brute force over the triangles, for checks): the sign from the
