@@ -45,10 +45,15 @@ def inverse_hessian(W_aa: np.ndarray, W_ea: np.ndarray, weights: np.ndarray,
     for ``eps > 0`` (``W_aa`` is), so the QP has one solution even with redundant actuators."""
     SW = np.sqrt(weights)[:, None] * W_ea
     task = SW.T @ SW
+    return task + least_energy(W_aa, task, epsilon)
+
+
+def least_energy(W_aa: np.ndarray, task: np.ndarray, epsilon: float = DEFAULT_EPSILON) -> np.ndarray:
+    """The regularization ``eps |task| / |W_aa| W_aa`` (na, na) of the task's Hessian ``task``."""
     Wsym = 0.5 * (W_aa + W_aa.T)
     # spectral norms of symmetric matrices: their largest |eigenvalue| (eigvalsh: a third of an SVD's cost)
     task_norm, w_norm = (np.abs(np.linalg.eigvalsh(x)).max() for x in (task, Wsym))
-    return task + epsilon * task_norm / max(w_norm, 1e-300) * Wsym
+    return epsilon * task_norm / max(w_norm, 1e-300) * Wsym
 
 
 def solve_inverse(W_aa: np.ndarray, W_ea: np.ndarray, delta_a_free: np.ndarray, delta_e_free: np.ndarray,

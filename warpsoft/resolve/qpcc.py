@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .gauss_seidel import RowInputs
-from .inverse import DEFAULT_EPSILON
+from .inverse import DEFAULT_EPSILON, least_energy
 
 MAX_PIVOTS = 50
 
@@ -74,11 +74,7 @@ class ContactQP:
         self.M = s[:, None] * np.hstack([W[np.ix_(e, cols_a)], W[np.ix_(e, cols_c)]])  # S [W_ea W_ec]
         self.target = s * delta_free[e]
         self.d_a, self.d_c = delta_free[a], delta_free[c]
-        task = self.M[:, :na].T @ self.M[:, :na]
-        w_sym = 0.5 * (self.W_aa + self.W_aa.T)
-        task_norm = np.abs(np.linalg.eigvalsh(task)).max() if na else 0.0
-        w_norm = max(np.abs(np.linalg.eigvalsh(w_sym)).max(), 1e-300) if na else 1.0
-        self.reg = epsilon * task_norm / w_norm * w_sym  # (inverse.py's least-energy term)
+        self.reg = least_energy(self.W_aa, self.M[:, :na].T @ self.M[:, :na], epsilon)  # (inverse.py's)
         self.diag_c = np.maximum(np.diag(self.W_cc), 1e-300)
 
     def objective(self, lam_a: np.ndarray, lam_c: np.ndarray) -> float:
