@@ -51,7 +51,8 @@ class Model:
     1 = free, 0 = fixed), ``f_const`` (n vec3d, N: gravity and constant loads; None when there are
     none), ``node_world`` (n int32), ``elem_world`` (m int32), probe ``probe_nodes`` /
     ``probe_weights``. Host: ``world_node_start``, ``world_elem_start`` (worlds + 1), the same
-    arrays with an ``_np`` suffix.
+    arrays with an ``_np`` suffix; ``driven``, the fixed regions a motion carries
+    (``warpsoft/drive.py``).
     """
 
     def __init__(self, scenes: Scene | Sequence[Scene], device: str | None = None):
@@ -129,12 +130,23 @@ class Model:
 
         mask = np.ones((self.num_nodes, 3))
         self.load_weights = []  # (load, global node ids, weights) of every load
+        self.driven = []  # fixed regions carried by a motion: (label, motion, global node ids, (k, 3) 1 = driven axis)
+        driver = np.full(self.num_nodes, -1)
         for w, scene in enumerate(self.scenes):
             for fx in scene.fixtures:
                 info = self.body_info(fx.body.name, w)
                 sel = np.flatnonzero(fx.region(fx.body.mesh.nodes)) + info.node_start
                 for a in fx.axes:
                     mask[sel, "xyz".index(a)] = 0.0
+                if fx.motion is not None:
+                    label = f"scene '{scene.name}': body '{fx.body.name}': fixed region {fx.region!r}"
+                    twice = sel[driver[sel] >= 0]
+                    if len(twice):
+                        raise SceneError(f"{label}: node {int(twice[0]) - info.node_start} is also carried by "
+                                         f"{self.driven[driver[twice[0]]][0]}; a node follows one motion")
+                    driver[sel] = len(self.driven)
+                    axes = np.array([[float(a in fx.axes) for a in "xyz"]] * len(sel)).reshape(-1, 3)
+                    self.driven.append((label, fx.motion, sel, axes))
             for load in scene.loads:
                 wts = load_weights(load)
                 ids = np.flatnonzero(wts)

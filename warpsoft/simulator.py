@@ -12,6 +12,7 @@ from warpsoft.kernels import integrate
 from warpsoft.kernels.rows import mapping
 
 from . import step as stepping
+from .drive import DrivenNodes
 from .elastic import element_model
 from .errors import SceneError, SimulationError
 from .linear import SOLVERS, SystemOperator, choose, make_solver
@@ -116,6 +117,8 @@ class Simulator:
             self.stiffness_scale = h * h + h * m.rayleigh_stiffness
         self.operator = SystemOperator(m, self.rot, self.elastic)
         self.operator.set_scales(self.mass_scale, self.stiffness_scale)
+
+        self.driven = DrivenNodes(m) if m.driven else None  # fixed regions carried by a motion
 
         # constraint rows exist only when some world declares actuators, effectors or obstacles
         self.rows = None

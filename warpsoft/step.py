@@ -155,6 +155,8 @@ def begin(sim: Simulator, actuated: bool) -> None:
     actuators, their columns ``H_a^T``; the first right-hand side ``b = P(f_int + f_ext)``
     (quasi-static) or ``P(h (f_int + f_ext) + M v)``."""
     q = sim.state.q
+    if sim.driven is not None:  # the kinematic frames' nodes go where the step ends (then linearized there)
+        sim.driven.apply(q, sim.state.v)
 
     def again() -> None:  # the state changed since the last step linearized it
         linearize(sim, q)
@@ -272,8 +274,11 @@ def convergence_advice(sim: Simulator) -> str:
 
 def host_inputs(sim: Simulator, t: float, controls: list[Control | None]) -> None:
     """What the user's Python decides for this step, computed once and copied in one go each:
-    time-dependent loads, effector targets, actuator inputs (only when they changed)."""
+    the kinematic frames' poses, time-dependent loads, effector targets, actuator inputs (only
+    when they changed)."""
     m, rows = sim.model, sim.rows
+    if sim.driven is not None:
+        sim.driven.set_time(t)  # where the kinematic frames carry their nodes
     if m.time_dependent_loads:
         sim.f_ext.assign(m.external_forces(t) + (m.f_const_np if m.f_const is not None else 0.0))
     if rows is not None:

@@ -159,11 +159,14 @@ class Rows:
 
     # ---- evaluation -------------------------------------------------------------------------
     def set_time(self, t: float) -> np.ndarray | None:
-        """Upload the effector targets and the moving obstacles' poses at time ``t`` (the step's
-        end); returns the targets ``(effectors, 3)`` (m), in table order, or None without effectors."""
-        contact = self.kind("contact")
+        """Upload the effector targets, the moving obstacles' poses and moving pull points at
+        time ``t`` (the step's end); returns the targets ``(effectors, 3)`` (m), in table order,
+        or None without effectors."""
+        contact, cable = self.kind("contact"), self.kind("cable")
         if contact is not None:
             contact.set_time(t, self.model.dt)
+        if cable is not None:
+            cable.set_time(t)  # pull points that ride a frame
         eff = self.kind("effector")
         return eff.set_time(t) if eff is not None else None
 

@@ -12,6 +12,7 @@ from warpsoft.kernels.rows import cable as kernels
 
 from ..errors import SceneError
 from ..mapping import barycentric, locate
+from ..scene.obstacles import pose_of
 from .kind import RowKind
 
 
@@ -32,9 +33,21 @@ class CableRows(RowKind):
         self.num_entries = 4 * int(counts.sum())
         self.start = wp.array(np.array([p.first_point for p in placed], dtype=np.int32), dtype=wp.int32, device=d)
         self.count = wp.array(counts, dtype=wp.int32, device=d)
-        self.pull = wp.array(np.array([p.item.pull_point for p in placed]), dtype=wp.vec3d, device=d)
+        self.pull_host = np.array([p.item.pull_point for p in placed])  # where each is now (m)
+        self.pull = wp.array(self.pull_host, dtype=wp.vec3d, device=d)
+        self.moving = [k for k, p in enumerate(placed) if p.item.pull_motion is not None]
         self.rest_length = wp.array(np.array([p.item.rest_length for p in placed]), dtype=wp.float64, device=d)
         self.row = wp.array(np.array([p.first_row for p in placed], dtype=np.int32), dtype=wp.int32, device=d)
+
+    def set_time(self, t: float) -> None:
+        """The pull points that ride a frame, where it is at ``t`` (s): one upload, only then."""
+        if not self.moving:
+            return
+        for k in self.moving:
+            cable = self.placed[k].item
+            rotation, translation = pose_of(cable.pull_motion, t, f"cable '{cable.name}': pull_motion")
+            self.pull_host[k] = rotation @ cable.pull_point + translation
+        self.pull.assign(self.pull_host)
 
     def evaluate(self, table, q) -> None:
         # the entries of cable point j sit at entry_offset + 4 (j - point_offset): the cables'
@@ -46,8 +59,8 @@ class CableRows(RowKind):
 
     def paths(self, points: np.ndarray, world: int) -> dict[str, np.ndarray]:
         """Each cable's polyline (m, pull point first) in ``world`` from the mapped points ``(p, 3)``."""
-        return {p.item.name: np.vstack([p.item.pull_point, points[p.first_point:p.first_point + p.num_points]])
-                for p in self.placed if p.world == world}
+        return {p.item.name: np.vstack([self.pull_host[k], points[p.first_point:p.first_point + p.num_points]])
+                for k, p in enumerate(self.placed) if p.world == world}
 
 
 def check_pull_point(model, placed) -> None:

@@ -6,6 +6,7 @@ tension (N, >= 0: a slack cable pulls nothing).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,11 +19,13 @@ from .actuator import Actuator
 class Cable(Actuator):
     """A cable (scene side). ``points``: ``(k, 3)`` path points (m) inside ``body``, from the
     one nearest the pull point to the attachment; ``pull_point``: fixed point (m) where the
-    cable is pulled from (often outside the body, behind its base)."""
+    cable is pulled from (often outside the body, behind its base), carried by ``pull_motion``
+    when given (a pose per time, as a moving fixed region's)."""
 
     body: object = None
     points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     pull_point: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    pull_motion: Callable[[float], object] | None = None  # the pull point's frame (None: fixed in space)
     kind = "cable"
 
     def __post_init__(self) -> None:

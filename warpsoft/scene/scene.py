@@ -81,11 +81,14 @@ class Body:
 
 @dataclass
 class Fixture:
-    """Nodes of ``body`` in ``region`` held at their current position along ``axes``."""
+    """Nodes of ``body`` in ``region`` held along ``axes``: at their rest position, or carried by
+    ``motion`` (a kinematic frame: ``t -> translation`` or ``t -> (rotation, translation)``, the
+    rigid motion of the rest positions at time ``t``)."""
 
     body: Body
     region: Region
     axes: str = "xyz"
+    motion: Callable[[float], object] | None = None
 
 
 @dataclass
@@ -164,15 +167,26 @@ class Scene:
         self.bodies.append(body)
         return body
 
-    def fix(self, body: Body, region: Region, axes: str = "xyz") -> Fixture:
-        """Hold the nodes of ``body`` in ``region`` along ``axes`` (any of "x", "y", "z")."""
+    def fix(self, body: Body, region: Region, axes: str = "xyz",
+            motion: Callable[[float], object] | None = None) -> Fixture:
+        """Hold the nodes of ``body`` in ``region`` along ``axes`` (any of "x", "y", "z").
+
+        ``motion``: a kinematic frame that carries them (a moving base, a gripper's palm): a
+        schedule ``t -> translation`` (m) or ``t -> (rotation, translation)`` applied to their
+        rest positions at time ``t`` (s) (e.g. ``ws.waypoints``); each step moves them, along
+        ``axes``, to where the frame is at the step's end."""
         self._own(body, "fix")
         region = as_region(region, f"body '{body.name}': fixed region")
         if not axes or any(a not in "xyz" for a in axes) or len(set(axes)) != len(axes):
             raise SceneError(f"body '{body.name}': fix axes must be a subset of 'xyz', got {axes!r}")
         if not np.any(region(body.mesh.nodes)):
             raise SceneError(f"body '{body.name}': fixed region {region!r} selects no node")
-        f = Fixture(body, region, axes)
+        if motion is not None:
+            if not callable(motion):
+                raise SceneError(f"body '{body.name}': fixed region motion must be a function of the time t (s), "
+                                 f"got {motion!r}")
+            pose_of(motion, 0.0, f"body '{body.name}': fixed region motion")  # checked now, not at the first step
+        f = Fixture(body, region, axes, motion)
         self.fixtures.append(f)
         return f
 
@@ -199,17 +213,24 @@ class Scene:
     def add_cable(self, name: str, body: Body, points, pull_point, mode: str = "displacement",
                   value: float | Callable[[float], float] = 0.0, min_force: float = 0.0, max_force: float = math.inf,
                   min_displacement: float = -math.inf, max_displacement: float = math.inf,
-                  max_step: float = math.inf) -> Cable:
+                  max_step: float = math.inf, pull_motion: Callable[[float], object] | None = None) -> Cable:
         """A cable pulled from the fixed ``pull_point`` (m) through ``points`` ``(k, 3)`` (m) of ``body``.
 
         ``mode="displacement"``: ``value`` is the shortening (m); ``mode="force"``: the tension
         (N). Bounds: tension in [min_force >= 0, max_force] N, shortening in
         [min_displacement, max_displacement] m, at most ``max_step`` m of change per step.
+        ``pull_motion``: the pull point rides a kinematic frame (its motor on a moving base or
+        palm): ``t -> translation`` or ``t -> (rotation, translation)``, as ``fix(..., motion=)``.
         """
         self._own(body, "add_cable")
         self._new_row_name(name)
+        if pull_motion is not None:
+            if not callable(pull_motion):
+                raise SceneError(f"cable '{name}': pull_motion must be a function of the time t (s), got "
+                                 f"{pull_motion!r}")
+            pose_of(pull_motion, 0.0, f"cable '{name}': pull_motion")
         cable = Cable(name, mode, value, min_force, max_force, min_displacement, max_displacement, max_step,
-                      body=body, points=points, pull_point=pull_point)
+                      body=body, points=points, pull_point=pull_point, pull_motion=pull_motion)
         self.cables.append(cable)
         return cable
 
