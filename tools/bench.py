@@ -169,7 +169,7 @@ def detection_cost(sim: Simulator, stats: list) -> dict | None:
     for _ in range(20):
         wp.synchronize_device(sim.model.device)
         t0 = time.perf_counter()
-        sim.rows.detect(sim.state.q, sim.gauss_seidel.lam, sim.gauss_seidel.friction)
+        sim.rows.detect(sim.state.q, sim.gauss_seidel.lam, sim.gauss_seidel.friction, sim.state)
         wp.synchronize_device(sim.model.device)
         times.append(time.perf_counter() - t0)
     us = 1e6 * float(np.median(times))

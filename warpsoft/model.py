@@ -52,7 +52,10 @@ class Model:
     none), ``node_world`` (n int32), ``elem_world`` (m int32), probe ``probe_nodes`` /
     ``probe_weights``. Host: ``world_node_start``, ``world_elem_start`` (worlds + 1), the same
     arrays with an ``_np`` suffix; ``driven``, the fixed regions a motion carries
-    (``warpsoft/drive.py``).
+    (``warpsoft/drive.py``); ``rigid`` the rigid bodies ``(world, RigidBody)`` in model order.
+    Rigid bodies (device, ``(bodies,)``, only when some world has them): ``rigid_world``,
+    ``rigid_inv_mass`` (1/kg), ``rigid_inertia`` (mat33d, kg m^2, the body's frame),
+    ``rigid_gravity`` (m/s^2).
     """
 
     def __init__(self, scenes: Scene | Sequence[Scene], device: str | None = None):
@@ -169,6 +172,17 @@ class Model:
         self.f_const_np = f_const
         self.f_const = wp.array(f_const, dtype=wp.vec3d, device=d) if has_const else None
 
+        # rigid bodies, world by world: mass properties and the state at t = 0
+        self.rigid = [(w, rb) for w, scene in enumerate(self.scenes) for rb in scene.rigid_bodies]
+        self.num_rigid = len(self.rigid)
+        if self.rigid:
+            f64 = lambda v, dtype: wp.array(np.array(v, dtype=float), dtype=dtype, device=d)  # noqa: E731
+            self.rigid_world_np = np.array([w for w, _ in self.rigid], dtype=np.int32)
+            self.rigid_world = wp.array(self.rigid_world_np, dtype=wp.int32, device=d)
+            self.rigid_inv_mass = f64([1.0 / rb.mass for _, rb in self.rigid], wp.float64)
+            self.rigid_inertia = f64([rb.inertia for _, rb in self.rigid], wp.mat33d)  # its own frame
+            self.rigid_gravity = f64([self.scenes[w].gravity for w, _ in self.rigid], wp.vec3d)
+
         # probes: located in their own world's elements
         self.probe_names, self.probe_world, ids, wts = [], [], [], []
         for w, scene in enumerate(self.scenes):
@@ -209,7 +223,15 @@ class Model:
 
     def state(self) -> State:
         """A new state at rest (positions = rest positions, zero velocity)."""
-        return State(wp.clone(self.rest), wp.zeros(self.num_nodes, dtype=wp.vec3d, device=self.device))
+        d = self.device
+        state = State(wp.clone(self.rest), wp.zeros(self.num_nodes, dtype=wp.vec3d, device=d))
+        if self.rigid:
+            bodies = [rb for _, rb in self.rigid]
+            state.body_p = wp.array(np.array([rb.center for rb in bodies]), dtype=wp.vec3d, device=d)
+            state.body_r = wp.array(np.tile([0.0, 0.0, 0.0, 1.0], (len(bodies), 1)), dtype=wp.quatd, device=d)
+            state.body_v = wp.array(np.array([rb.velocity for rb in bodies]), dtype=wp.vec3d, device=d)
+            state.body_w = wp.array(np.array([rb.angular_velocity for rb in bodies]), dtype=wp.vec3d, device=d)
+        return state
 
     def external_forces(self, t: float) -> np.ndarray | None:
         """Time-dependent part of the external forces at time ``t`` (s), ``(n, 3)`` N, or None."""

@@ -158,6 +158,8 @@ class Newton:
         wp.launch(kernels.update, m.num_nodes,
                   inputs=[sim.state.q, self.dx_base, e, self.alpha, m.node_world, 0.0 if m.static else 1.0 / m.dt],
                   outputs=[self.dx[0], sim.next.q, sim.next.v], device=m.device)
+        if sim.rigid is not None:  # the rigid bodies along the same fraction
+            sim.rigid.advance(sim.state, sim.next, self.alpha)
 
     def residual(self, e: wp.array) -> None:
         """The out-of-balance ``r(dx)`` (the next solve's right-hand side, ``rhs[0]``) and ``R . e``

@@ -21,6 +21,7 @@ from .newton import Newton
 from .readback import Readback
 from .resolve import GaussSeidel, kinematic_jacobian
 from .resolve.inverse_device import NMAX, DeviceInverse
+from .rigid import RigidBodies
 from .rows import Rows
 from .scene import Scene
 from .state import Control, State
@@ -124,17 +125,19 @@ class Simulator:
         self.rows = None
         self.constraint_scale = 1.0 if m.static else h * h  # dx = dx_free + s X lambda, W = s H X
         ncol = 0
-        if any(s.actuators or s.effectors or s.obstacles for s in m.scenes):
+        if any(s.actuators or s.effectors or s.obstacles or s.rigid_bodies for s in m.scenes):
             self.rows = Rows(m)
             ncol = self.rows.num_columns
             self.gauss_seidel = GaussSeidel(self.rows)
             self.effector_weights = [np.concatenate([np.full(len(e.axes), e.weight) for e in effs]) if effs
                                      else np.zeros(0) for effs in self.rows.effectors]
+        self.rigid = RigidBodies(m, self.rows) if m.num_rigid else None  # (their rows are contacts)
         self.device_inverse = None  # the inverse model's QP on the device, when asked for or faster
         inverse_worlds = [w for w, s in enumerate(m.scenes) if s.inverse and self.rows is not None
                           and self.rows.world_actuators[w]]
         small = bool(inverse_worlds) and max(self.rows.world_actuators[w] for w in inverse_worlds) <= AUTO_DEVICE_QP
-        touching = [w for w in inverse_worlds if m.scenes[w].obstacles]  # their QPCC runs on the host
+        # their QPCC runs on the host
+        touching = [w for w in inverse_worlds if m.scenes[w].obstacles or m.scenes[w].rigid_bodies]
         if touching and qp == "device":
             raise SceneError(f"Simulator: qp='device' has no contacts, but inverse world {touching[0]} has "
                              "obstacles (its QPCC runs on the host); use qp='piqp' or 'auto'")
@@ -185,6 +188,8 @@ class Simulator:
             contact = self.rows.kind("contact")
             if contact is not None:
                 after["contacts_found"] = contact.found
+        if self.rigid is not None:
+            after |= {"rigid_p": self.rigid.pose_p, "rigid_r": self.rigid.pose_r}
         self.after_step = Readback(after, d)
 
     # ---- the step ------------------------------------------------------------------------
@@ -251,20 +256,35 @@ class Simulator:
     def constraint_geometry(self, world: int = 0) -> dict:
         """Rows of ``world`` at the current state: cable polylines (m, pull point first) by cable
         name, effector positions and targets (m) by effector name, the pose
-        ``(rotation, translation)`` of each moving obstacle by name, and with obstacles the
-        contacts in use: ``(points (k, 3) m, forces (k, 3) N)``, the force on the body."""
+        ``(rotation, translation)`` that carries each moving obstacle and rigid body from where it
+        was declared, by name, and with contacts the contacts in use: ``(points (k, 3) m,
+        forces (k, 3) N)``, the force on the touching point."""
         rows = self.rows
         moving = {e.name: e.pose(self.time) for e in self.model.scenes[world].obstacles if e.motion is not None}
+        moving |= self.rigid_motions(world)
         if rows is None:
             return {"cables": {}, "effectors": {}, "targets": {}, "obstacles": moving}
-        rows.evaluate(self.state.q)
+        rows.evaluate(self.state.q, self.state)
         targets = rows.set_time(self.time)
         out = {"cables": rows.cable_paths(world), "effectors": rows.effector_positions(world),
                "targets": rows.targets(targets, world), "obstacles": moving}
         contact = rows.kind("contact")
         if contact is not None:
-            out["contacts"] = contact.forces(rows, world, self.state.q.numpy(), self.gauss_seidel.lam.numpy())
+            out["contacts"] = contact.forces(rows, world, self.gauss_seidel.lam.numpy())
         return out
+
+    def rigid_poses(self, world: int | None = None, state: State | None = None) -> dict[str, tuple]:
+        """``name -> (rotation 3x3, centre of mass (3,) m)`` of each rigid body (of ``world`` only,
+        if given), read from the device; {} without rigid bodies."""
+        if self.rigid is None:
+            return {}
+        return self.rigid.poses(state or self.state, world, self.model)
+
+    def rigid_motions(self, world: int = 0) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """``name -> (rotation, translation)``: the rigid motion that carries each rigid body of
+        ``world`` from where it was declared to where it is (``x -> R (x - c0) + c``)."""
+        centers = {rb.name: rb.center for w, rb in self.model.rigid if w == world}
+        return {name: (rot, p - rot @ centers[name]) for name, (rot, p) in self.rigid_poses(world).items()}
 
     def kinematic_jacobian(self, world: int = 0) -> np.ndarray:
         """``W_ea W_aa^-1`` of the last step: effector-axis motion (m) per unit actuator

@@ -161,7 +161,7 @@ def begin(sim: Simulator, actuated: bool) -> None:
     def again() -> None:  # the state changed since the last step linearized it
         linearize(sim, q)
         if actuated:
-            sim.rows.evaluate(q)
+            sim.rows.evaluate(q, sim.state)
             sim.rows.actuator_columns(sim.columns)
 
     if getattr(sim.solver, "stale", False):  # its preconditioner is due for a refresh: before this solve
@@ -171,18 +171,20 @@ def begin(sim: Simulator, actuated: bool) -> None:
     if actuated:  # effectors alone need no column: they are measured after
         contacts = sim.rows.kind("contact") is not None
         if contacts:  # which nodes take the contact rows of this step (they stay for its iterations)
-            sim.rows.detect(q, sim.gauss_seidel.lam, sim.gauss_seidel.friction)
+            sim.rows.detect(q, sim.gauss_seidel.lam, sim.gauss_seidel.friction, sim.state)
         # Rows are linearized where A is. Evaluated at the free configuration instead, H
         # lets a follower load (a pressure) gain energy step after step (the pneunet
         # oscillated ever wider), and delta(q_free) misses the imposed displacement by a
         # second-order term (17 % on a bent cable beam); the linear prediction meets it
         # exactly once the step has converged. (Effector rows measure x - target: their
         # targets moved with the time, so the rows are evaluated again.)
-        sim.rows.evaluate(q)
+        sim.rows.evaluate(q, sim.state)
         if contacts:
             sim.rows.actuator_columns(sim.columns)  # the columns of this step's contacts
         wp.copy(sim.newton.delta_start, sim.rows.delta)  # the actuators' per-step limits count from here
     sim.newton.start()
+    if sim.rigid is not None:
+        sim.rigid.start(sim.state)  # the rigid bodies' free motion
 
 
 def free_solve(sim: Simulator, actuated: bool, first: bool, captured: bool) -> None:
@@ -196,6 +198,8 @@ def free_solve(sim: Simulator, actuated: bool, first: bool, captured: bool) -> N
     if not first:
         sim.newton.hold_done_worlds()
     sim.newton.accept(actuated)
+    if sim.rigid is not None:
+        sim.rigid.accept()
     if captured:
         sim.solver.run(sim.rhs, sim.sol)  # read with the iteration
     else:
@@ -206,6 +210,9 @@ def compliance(sim: Simulator) -> None:
     """``delta_free = delta(q_k) + H e`` and ``W = s H X`` (device)."""
     sim.rows.predict(sim.dx_free)
     sim.rows.compliance(sim.X, sim.constraint_scale)
+    if sim.rigid is not None:  # the rigid bodies' share: their free motion and M^-1 J^T
+        sim.rigid.predict()
+        sim.rigid.compliance(sim.constraint_scale)
 
 
 def correction(sim: Simulator, actuated: bool, make: bool = True) -> wp.array:
@@ -215,6 +222,8 @@ def correction(sim: Simulator, actuated: bool, make: bool = True) -> wp.array:
         return sim.dx_free[0]
     if make:
         sim.rows.correct(sim.dx_free[0], sim.X, sim.gauss_seidel.lam, sim.constraint_scale, sim.dx)
+        if sim.rigid is not None:
+            sim.rigid.correct(sim.gauss_seidel.lam, sim.constraint_scale)
     return sim.dx
 
 
@@ -224,7 +233,7 @@ def relinearize(sim: Simulator, actuated: bool) -> None:
     m, q = sim.model, sim.next.q
     linearize(sim, q)
     if sim.rows is not None:
-        sim.rows.evaluate(q)
+        sim.rows.evaluate(q, sim.next)
     if actuated:
         sim.rows.actuator_columns(sim.columns)
     sim.newton.residual(correction(sim, actuated, make=False))
@@ -232,6 +241,8 @@ def relinearize(sim: Simulator, actuated: bool) -> None:
     sim.health_step.zero_()
     wp.launch(linalg.step_health, m.num_nodes, inputs=[q, sim.newton.dx[0]],
               outputs=[sim.health_flag, sim.health_step], device=m.device)
+    if sim.rigid is not None:
+        sim.rigid.linearize(sim.next, sim.health_flag)
     sim.inverted.zero_()
     wp.launch(geometry.count_inverted, m.num_elements, inputs=[q, m.tets, m.dm_inv, m.elem_world],
               outputs=[sim.inverted], device=m.device)

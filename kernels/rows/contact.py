@@ -1,11 +1,15 @@
-"""Contact rows against rigid obstacles, analytic or triangle meshes (``warpsoft/rows/contact.py``).
+"""Contact rows against rigid solids: obstacles (analytic or triangle meshes) and rigid bodies
+(``warpsoft/rows/contact.py``).
 
-A candidate is a (surface node, obstacle) pair of one world; candidates are grouped by world.
-Detection marks the candidates within their obstacle's contact distance, then gives each world's
-marked candidates, in candidate order (deterministic), the world's contact slots up to its
-capacity. A slot's row measures the gap ``delta = phi(x_node)`` (m, the obstacle's signed
-distance) with ``H = n`` (its outward normal) at the node; an unused slot's row is inert (no
-entry, ``delta = 0``).
+A candidate is a (point, solid record) pair of one world; candidates are grouped by world. A
+point is a soft body's surface node or a rigid body's collision point; a record is an obstacle's
+solid or a rigid body's (its ``owner``), posed from the body's state before each use. Detection
+marks the candidates within their record's contact distance, then gives each world's marked
+candidates, in candidate order (deterministic), the world's contact slots up to its capacity.
+A slot's row measures the gap ``delta = phi(x)`` (m, the solid's signed distance) with
+``H = n`` (its outward normal) at a soft point, and on the rigid bodies involved the entries
+``(n, r x n)`` for the point's body and ``(-n, -r x n)`` for the owner (``r`` from each
+body's centre of mass); an unused slot's row is inert (no entry, ``delta = 0``).
 """
 
 import warp as wp
@@ -199,19 +203,84 @@ def record_distance(obstacles: Obstacles, o: int, x: wp.vec3d):
                              obstacles.mesh[o], obstacles.tri0[o], obstacles.tri_xyz, x)
 
 
+@wp.struct
+class Points:
+    """The candidates' points: a soft node (``node >= 0``) or a rigid body's collision point
+    (``body >= 0``, ``local`` in the body's frame, m); ``obstacle`` the record each meets."""
+
+    node: wp.array(dtype=wp.int32)
+    body: wp.array(dtype=wp.int32)
+    local: wp.array(dtype=wp.vec3d)
+    obstacle: wp.array(dtype=wp.int32)
+
+
+@wp.struct
+class Bodies:
+    """The rigid bodies' state the rows are evaluated at (``(bodies,)``; 1 inert entry without
+    bodies): centres of mass ``p`` (m), orientations ``r``, velocities ``v`` (m/s), ``w`` (rad/s)."""
+
+    p: wp.array(dtype=wp.vec3d)
+    r: wp.array(dtype=wp.quatd)
+    v: wp.array(dtype=wp.vec3d)
+    w: wp.array(dtype=wp.vec3d)
+
+
+@wp.func
+def point_at(points: Points, bodies: Bodies, q: wp.array(dtype=wp.vec3d), c: int):
+    """Where candidate ``c``'s point is (m)."""
+    b = points.body[c]
+    if b >= 0:
+        return bodies.p[b] + wp.quat_rotate(bodies.r[b], points.local[c])
+    return q[points.node[c]]
+
+
+@wp.func
+def body_speed(bodies: Bodies, b: int, x: wp.vec3d):
+    """Speed (m/s) of the point ``x`` carried by rigid body ``b`` (0 for ``b < 0``)."""
+    if b < 0:
+        return wp.float64(0.0)
+    return wp.length(bodies.v[b] + wp.cross(bodies.w[b], x - bodies.p[b]))
+
+
+@wp.kernel
+def pose_records(owned: wp.array(dtype=wp.int32), owner: wp.array(dtype=wp.int32), a_loc: wp.array(dtype=wp.vec3d),
+                 b_loc: wp.array(dtype=wp.vec3d), rot_loc: wp.array(dtype=wp.mat33d), bodies: Bodies,
+                 obstacles: Obstacles):
+    """The solids of rigid bodies (records ``owned``) where their bodies are: their record in the
+    body's frame carried by its pose (a capsule's or cylinder's ``b`` is a point, a box's its
+    half sizes)."""
+    k = wp.tid()
+    o = owned[k]
+    b = owner[o]
+    rot = wp.quat_to_matrix(bodies.r[b])
+    obstacles.a[o] = rot * a_loc[o] + bodies.p[b]
+    kind = obstacles.kind[o]
+    if kind == CAPSULE or kind == CYLINDER:
+        obstacles.b[o] = rot * b_loc[o] + bodies.p[b]
+    else:
+        obstacles.b[o] = b_loc[o]
+    obstacles.rot[o] = rot * rot_loc[o]
+
+
 @wp.kernel
 def mark_candidates(
     q: wp.array(dtype=wp.vec3d),
-    cand_node: wp.array(dtype=wp.int32),
-    cand_obstacle: wp.array(dtype=wp.int32),
+    points: Points,
     obstacles: Obstacles,
+    owner: wp.array(dtype=wp.int32),
+    bodies: Bodies,
+    h: wp.float64,
     near: wp.array(dtype=wp.int32),
 ):
-    """``near[c] = 1`` when candidate ``c``'s node is within its obstacle's contact distance."""
+    """``near[c] = 1`` when candidate ``c``'s point is within its record's contact distance; where
+    a rigid body takes part, the distance grows by what the bodies can cover in the step (``h``
+    times their points' speeds), so that a falling solid is caught before it passes through."""
     c = wp.tid()
-    o = cand_obstacle[c]
-    phi, n = record_distance(obstacles, o, q[cand_node[c]])
-    near[c] = wp.where(phi < obstacles.reach[o], 1, 0)
+    o = points.obstacle[c]
+    x = point_at(points, bodies, q, c)
+    phi, n = record_distance(obstacles, o, x)
+    reach = obstacles.reach[o] + h * (body_speed(bodies, points.body[c], x) + body_speed(bodies, owner[o], x))
+    near[c] = wp.where(phi < reach, 1, 0)
 
 
 @wp.func
@@ -229,8 +298,9 @@ def assign_slots(
     q: wp.array(dtype=wp.vec3d),
     world_cand_start: wp.array(dtype=wp.int32),
     near: wp.array(dtype=wp.int32),
-    cand_node: wp.array(dtype=wp.int32),
-    cand_obstacle: wp.array(dtype=wp.int32),
+    points: Points,
+    bodies: Bodies,
+    owner: wp.array(dtype=wp.int32),
     mu: wp.array(dtype=wp.float64),
     step_rot: wp.array(dtype=wp.mat33d),
     step_shift: wp.array(dtype=wp.vec3d),
@@ -250,10 +320,10 @@ def assign_slots(
     """One thread per world: its near candidates take its slots in candidate order; ``found[w]``
     counts them all (more than the capacity: an overflow), ``force_rows[w]`` is the world's
     actuator rows plus its contacts' rows (1 per contact, 3 with friction: normal, then two
-    tangents, whose ``friction`` is the obstacle's coefficient). A slot keeps its node's position
-    now, moved with the obstacle over the step, as the anchor its tangential slip is measured
-    from. A contact's multipliers start from what its node and obstacle carried at the last
-    step (0 for a new contact)."""
+    tangents, whose ``friction`` is the record's coefficient). A slot keeps the point's position
+    now as the anchor its tangential slip is measured from: carried over the step by a moving
+    obstacle, or kept in the owner's frame for a rigid body's solid. A contact's multipliers
+    start from what its candidate carried at the last step (0 for a new contact)."""
     w = wp.tid()
     cap = capacity[w]
     rps = rows_per_slot[w]
@@ -271,11 +341,16 @@ def assign_slots(
         if near[c] != 0:
             if k < cap:
                 slot_candidate[slot_start[w] + k] = c
-                o = cand_obstacle[c]  # the node's place now, carried as the obstacle moves over the step
-                anchor[slot_start[w] + k] = step_rot[o] * q[cand_node[c]] + step_shift[o]
+                o = points.obstacle[c]
+                x = point_at(points, bodies, q, c)
+                b = owner[o]
+                if b >= 0:  # in the owner's frame
+                    anchor[slot_start[w] + k] = wp.quat_rotate_inv(bodies.r[b], x - bodies.p[b])
+                else:  # the point's place now, carried as the obstacle moves over the step
+                    anchor[slot_start[w] + k] = step_rot[o] * x + step_shift[o]
                 for m in range(rps):
                     lam[contact_row[w] + k * rps + m] = cand_lam[c, m]
-                    friction[contact_row[w] + k * rps + m] = wp.where(m > 0, mu[cand_obstacle[c]], wp.float64(0.0))
+                    friction[contact_row[w] + k * rps + m] = wp.where(m > 0, mu[o], wp.float64(0.0))
             k += 1
     for j in range(k, cap):
         slot_candidate[slot_start[w] + j] = -1
@@ -294,43 +369,85 @@ def contact_rows(
     slot_rows: wp.array(dtype=wp.int32),
     slot_entry: wp.array(dtype=wp.int32),
     anchor: wp.array(dtype=wp.vec3d),
-    cand_node: wp.array(dtype=wp.int32),
-    cand_obstacle: wp.array(dtype=wp.int32),
+    points: Points,
     obstacles: Obstacles,
+    owner: wp.array(dtype=wp.int32),
+    bodies: Bodies,
     entry_offset: int,
+    rigid_offset: int,
     delta: wp.array(dtype=wp.float64),
     h_row: wp.array(dtype=wp.int32),
     h_node: wp.array(dtype=wp.int32),
     h_coef: wp.array(dtype=wp.vec3d),
+    j_row: wp.array(dtype=wp.int32),
+    j_body: wp.array(dtype=wp.int32),
+    j_lin: wp.array(dtype=wp.vec3d),
+    j_ang: wp.array(dtype=wp.vec3d),
+    slot_point: wp.array(dtype=wp.vec3d),
+    row_dir: wp.array(dtype=wp.vec3d),
 ):
-    """The rows of slot ``k`` at ``q`` (first row ``slot_row[k]``, ``slot_rows[k]`` of them, one
-    entry each from ``entry_offset + slot_entry[k]``): the gap with the normal at the node, and
-    with friction the slip from the anchor along two tangents; an unused slot's rows are inert."""
+    """The rows of slot ``k`` at ``q`` and the bodies' poses (first row ``slot_row[k]``,
+    ``slot_rows[k]`` of them, one soft entry each from ``entry_offset + slot_entry[k]`` and, with
+    rigid bodies (``rigid_offset >= 0``), two rigid entries each from ``rigid_offset + 2
+    slot_entry[k]``): the gap along the normal, and with friction the slip from the anchor along
+    two tangents. ``slot_point`` keeps the point (m) and ``row_dir`` each row's direction at it
+    (what the force on the point is made of). An unused slot's rows are inert."""
     k = wp.tid()
     c = slot_candidate[k]
     node = wp.int32(0)
+    pb = wp.int32(-1)  # the point's rigid body
+    ob = wp.int32(-1)  # the solid's
+    soft = wp.float64(0.0)  # 1 for a soft node: its entries carry the directions
     phi = wp.float64(0.0)
+    x, slip = wp.vec3d(), wp.vec3d()
     n, t1, t2 = wp.vec3d(), wp.vec3d(), wp.vec3d()
+    r_point, r_owner = wp.vec3d(), wp.vec3d()  # lever arms from the bodies' centres (m)
     if c >= 0:
-        node = cand_node[c]
-        o = cand_obstacle[c]
-        phi, n = record_distance(obstacles, o, q[node])
+        o = points.obstacle[c]
+        x = point_at(points, bodies, q, c)
+        pb = points.body[c]
+        ob = owner[o]
+        if pb < 0:
+            node = points.node[c]
+            soft = wp.float64(1.0)
+        else:
+            r_point = x - bodies.p[pb]
+        a = anchor[k]
+        if ob >= 0:
+            a = bodies.p[ob] + wp.quat_rotate(bodies.r[ob], anchor[k])
+            r_owner = a - bodies.p[ob]
+        phi, n = record_distance(obstacles, o, x)
         t1, t2 = tangents(n)
-    slip = q[node] - anchor[k]
+        slip = x - a
+    slot_point[k] = x
     for m in range(slot_rows[k]):
         row = slot_row[k] + m
         e = entry_offset + slot_entry[k] + m
+        d = n
+        value = phi
+        r_o = x - wp.where(ob >= 0, bodies.p[wp.max(ob, 0)], x)  # the normal row's lever on the owner
+        if m == 1:
+            d = t1
+            value = wp.dot(t1, slip)
+            r_o = r_owner
+        elif m == 2:
+            d = t2
+            value = wp.dot(t2, slip)
+            r_o = r_owner
+        if c < 0:
+            value = wp.float64(0.0)
         h_row[e] = row
         h_node[e] = node
-        if c < 0:
-            delta[row] = wp.float64(0.0)
-            h_coef[e] = wp.vec3d()
-        elif m == 0:
-            delta[row] = phi
-            h_coef[e] = n
-        elif m == 1:
-            delta[row] = wp.dot(t1, slip)
-            h_coef[e] = t1
-        else:
-            delta[row] = wp.dot(t2, slip)
-            h_coef[e] = t2
+        h_coef[e] = soft * d
+        delta[row] = value
+        row_dir[slot_entry[k] + m] = d
+        if rigid_offset >= 0:
+            j = rigid_offset + 2 * (slot_entry[k] + m)
+            j_row[j] = row
+            j_body[j] = pb
+            j_lin[j] = d
+            j_ang[j] = wp.cross(r_point, d)
+            j_row[j + 1] = row
+            j_body[j + 1] = ob
+            j_lin[j + 1] = -d
+            j_ang[j + 1] = -wp.cross(r_o, d)

@@ -36,7 +36,9 @@ class Rows:
 
     Attributes (device unless said): ``delta`` ``(rows,)`` row values (m, m^3); ``h_row``,
     ``h_node``, ``h_coef`` ``(entries,)`` the entries of ``H``; ``points`` ``(points,)`` mapped
-    points (m); ``W`` ``(rows, columns)`` compliance of each row against its world's actuator
+    points (m); ``j_row``, ``j_body``, ``j_lin``, ``j_ang`` ``(rigid entries,)`` the entries of
+    ``H`` on rigid bodies (translation m/m, rotation m/rad; body -1: inert); ``W``
+    ``(rows, columns)`` compliance of each row against its world's actuator
     columns (m/N, m^3/Pa). Host: ``world_row_start`` ``(worlds + 1,)``, ``world_actuators``
     ``(worlds,)``, ``world_contacts`` ``(worlds,)`` (contact capacity), ``num_columns`` (largest
     force block of a world), ``kinds`` (one object per row kind present), ``actuators[w]`` and
@@ -105,6 +107,18 @@ class Rows:
                     base[r] = v
                 self.kinds.append(block)
         self.num_entries = entry
+        # entries on rigid bodies (contacts that touch one): (row, body, j_lin, j_ang), each kind's
+        # block from its rigid_offset; only in models with rigid bodies
+        self.num_rigid_entries = 0
+        for block in self.kinds:
+            block.rigid_offset = self.num_rigid_entries
+            self.num_rigid_entries += getattr(block, "num_rigid_entries", 0)
+        n_rigid = max(self.num_rigid_entries, 1)
+        self.j_row = wp.zeros(n_rigid, dtype=wp.int32, device=d)
+        self.j_body = wp.full(n_rigid, -1, dtype=wp.int32, device=d)
+        self.j_lin = wp.zeros(n_rigid, dtype=wp.vec3d, device=d)
+        self.j_ang = wp.zeros(n_rigid, dtype=wp.vec3d, device=d)
+        self.bodies = None  # the State whose rigid poses the rows are evaluated at (None: no rigid body)
         self.delta_base = wp.array(base, dtype=wp.float64, device=d)
         self.delta = wp.zeros(self.num_rows, dtype=wp.float64, device=d)
         self.h_row = wp.zeros(entry, dtype=wp.int32, device=d)
@@ -145,11 +159,13 @@ class Rows:
         """Actuator rows of all worlds."""
         return int(self.world_actuators.sum())
 
-    def detect(self, q: wp.array, lam: wp.array, friction: wp.array) -> None:
-        """Contacts at ``q`` (with obstacles): which nodes take the contact rows of this step,
-        their multipliers' warm starts and their tangent rows' friction coefficients."""
+    def detect(self, q: wp.array, lam: wp.array, friction: wp.array, bodies=None) -> None:
+        """Contacts at ``q`` (and the rigid poses of the State ``bodies``): which nodes and rigid
+        points take the contact rows of this step, their multipliers' warm starts and their
+        tangent rows' friction coefficients."""
         contact = self.kind("contact")
         if contact is not None:
+            self.bodies = bodies
             contact.detect(self, q, lam, friction)
 
     @property
@@ -170,8 +186,10 @@ class Rows:
         eff = self.kind("effector")
         return eff.set_time(t) if eff is not None else None
 
-    def evaluate(self, q: wp.array) -> None:
-        """``delta`` and ``H`` of every row at positions ``q``: one launch per kind, all worlds."""
+    def evaluate(self, q: wp.array, bodies=None) -> None:
+        """``delta`` and ``H`` of every row at positions ``q`` (and the rigid poses of the State
+        ``bodies``, in a model with rigid bodies): one launch per kind, all worlds."""
+        self.bodies = bodies
         if self.num_points:
             wp.launch(mapping.interpolate_points, self.num_points, inputs=[q, self.point_nodes, self.point_weights],
                       outputs=[self.points], device=self.device)

@@ -1,13 +1,17 @@
-"""Contact rows: the gap between a soft body's surface nodes and the scene's rigid obstacles
-(Signorini: ``delta = phi(x) >= 0``, ``lambda >= 0`` the normal force (N), one of them zero) and,
-when some obstacle of the world has friction, two tangential rows per contact: the slip
-``t . (x - x_anchor)`` (m) from where the node was at the step's start, whose forces stay in
-Coulomb's cone ``|lambda_t| <= mu lambda_n``. A world has a fixed block of ``capacity`` contact
+"""Contact rows: the gap between points and rigid solids (Signorini: ``delta = phi(x) >= 0``,
+``lambda >= 0`` the normal force (N), one of them zero) and, when some solid of the world has
+friction, two tangential rows per contact: the slip ``t . (x - x_anchor)`` (m) from where the
+point was at the step's start, whose forces stay in Coulomb's cone ``|lambda_t| <= mu lambda_n``.
+
+The points are the soft bodies' surface nodes and the rigid bodies' collision points; the solids
+are the obstacles (fixed or moving by a schedule) and the rigid bodies' own (a body's points
+meet every other body's solid, never its own). A world has a fixed block of ``capacity`` contact
 slots (1 or 3 rows each); detection, at the start of a step, fills the first of them with the
-nodes then within their obstacle's contact distance of where it will be at the step's end (in
-node order: deterministic); a moving obstacle carries the anchors of its contacts; the rows
-are evaluated at every linearization of the step for those nodes, and the rest stay inert. More
-near nodes than slots is an overflow, reported. Kernels: ``kernels/rows/contact.py``.
+points then within their solid's contact distance of where it will be at the step's end (in
+candidate order: deterministic); a moving obstacle carries the anchors of its contacts, a rigid
+body keeps them in its frame; the rows are evaluated at every linearization of the step for
+those points, and the rest stay inert. More near points than slots is an overflow, reported.
+Kernels: ``kernels/rows/contact.py``.
 """
 
 from __future__ import annotations
@@ -22,13 +26,17 @@ from warpsoft.kernels.rows import contact as kernels
 from ..scene import obstacles as ob
 from .kind import RowKind
 
+RIGID_REACH = 0.02  # default contact distance for a rigid body's points: this share of its size (m/m)
+
 
 @dataclass
 class ContactBlock:
-    """A world's block of contact rows: its obstacles and capacity (the scene's) and the rows
-    per contact (3 when some obstacle has friction: the normal and two tangents, else 1)."""
+    """A world's block of contact rows: its obstacles and rigid bodies and capacity (the
+    scene's) and the rows per contact (3 when some solid has friction: the normal and two
+    tangents, else 1)."""
 
     obstacles: list
+    rigid: list
     capacity: int
     rows_per_contact: int
     name: str = "contacts"
@@ -46,10 +54,10 @@ class ContactRows(RowKind):
 
     @classmethod
     def items(cls, scene) -> list:
-        if not scene.obstacles:
+        if not scene.obstacles and not scene.rigid_bodies:
             return []
-        rows = 3 if any(o.mu > 0 for o in scene.obstacles) else 1
-        return [ContactBlock(list(scene.obstacles), scene.contact_capacity, rows)]
+        rows = 3 if any(o.mu > 0 for o in scene.obstacles + scene.rigid_bodies) else 1
+        return [ContactBlock(list(scene.obstacles), list(scene.rigid_bodies), scene.contact_capacity, rows)]
 
     @staticmethod
     def row_count(item) -> int:
@@ -59,61 +67,104 @@ class ContactRows(RowKind):
         super().__init__(model, placed, entry_offset)
         d = model.device
         worlds = model.num_worlds
-        kind, a, b, radius, rot, reach, mu = [], [], [], [], [], [], []
-        self.records = []  # the scene's obstacle entry of each (obstacle, body) record
-        cand_node, cand_obstacle, cand_start = [], [], [0]
+        rec = {k: [] for k in ("kind", "a", "b", "radius", "rot", "reach", "mu", "owner", "a_loc", "b_loc",
+                               "rot_loc")}
+        self.records = []  # the scene's obstacle entry or rigid body of each (solid, points) record
+        cand = {k: [] for k in ("node", "body", "local", "obstacle")}
+        cand_start = [0]
         capacity, slot_start, contact_row = np.zeros(worlds, np.int32), [0], np.zeros(worlds, np.int32)
         rows_per_slot, slot_row, slot_rows = np.ones(worlds, np.int32), [], []
         by_world = {p.world: p for p in placed}
+        rigid_index = {id(rb): k for k, (_, rb) in enumerate(model.rigid)}
+
+        def add(entry, pack, owner, reach, mu, nodes=None, body=None):  # one record and its candidates
+            k, pa, pb, r, R = pack
+            self.records.append(entry)
+            for key, v in (("kind", k), ("a", pa), ("b", pb), ("radius", r), ("rot", R), ("reach", reach),
+                           ("mu", mu), ("owner", owner)):
+                rec[key].append(v)
+            if owner >= 0:  # the record in its body's frame (its centre of mass, world axes at t = 0)
+                _, la, lb, _, lR = entry.shape.moved(np.eye(3), -entry.center).pack()
+            else:
+                la, lb, lR = pa, pb, R
+            rec["a_loc"].append(la)
+            rec["b_loc"].append(lb)
+            rec["rot_loc"].append(lR)
+            o = len(rec["kind"]) - 1
+            if nodes is not None:
+                count = len(nodes)
+                cand["node"].append(nodes)
+                cand["body"].append(np.full(count, -1))
+                cand["local"].append(np.zeros((count, 3)))
+            else:
+                rb = model.rigid[body][1]
+                count = len(rb.points)
+                cand["node"].append(np.full(count, -1))
+                cand["body"].append(np.full(count, body))
+                cand["local"].append(rb.points - rb.center)
+            cand["obstacle"].append(np.full(count, o))
+
         for w in range(worlds):
             p = by_world.get(w)
             if p is not None:
-                bodies = [info for info in model.bodies if info.world == w]
-                for entry in p.item.obstacles:
-                    k, pa, pb, r, R = entry.at(0.0).pack()
-                    for info in bodies:
-                        body = next(bd for bd in model.scenes[w].bodies if bd.name == info.name)
-                        dist = entry.contact_distance or 0.25 * mean_surface_edge(body.mesh)
-                        self.records.append(entry)
-                        kind.append(k)
-                        a.append(pa)
-                        b.append(pb)
-                        radius.append(r)
-                        rot.append(R)
-                        reach.append(dist)
-                        mu.append(entry.mu)
-                        nodes = np.unique(info.surface)
-                        cand_node.append(nodes)
-                        cand_obstacle.append(np.full(len(nodes), len(kind) - 1))
+                softs = []
+                for info in (b for b in model.bodies if b.world == w):
+                    body = next(bd for bd in model.scenes[w].bodies if bd.name == info.name)
+                    softs.append((np.unique(info.surface), 0.25 * mean_surface_edge(body.mesh)))
+                rigids = [(rigid_index[id(rb)], RIGID_REACH * rb.size) for rb in p.item.rigid]
+                for entry in p.item.obstacles:  # obstacles: every soft body's nodes, every rigid body's points
+                    pack = entry.at(0.0).pack()
+                    for nodes, reach in softs:
+                        add(entry, pack, -1, entry.contact_distance or reach, entry.mu, nodes=nodes)
+                    for k, reach in rigids:
+                        add(entry, pack, -1, entry.contact_distance or reach, entry.mu, body=k)
+                for k, _ in rigids:  # a rigid body's solid: the soft nodes, the other rigid bodies' points
+                    rb = model.rigid[k][1]
+                    pack = rb.shape.pack()
+                    for nodes, reach in softs:
+                        add(rb, pack, k, rb.contact_distance or reach, rb.mu, nodes=nodes)
+                    for j, reach in rigids:
+                        if j != k:
+                            add(rb, pack, k, rb.contact_distance or reach, rb.mu, body=j)
                 rps = p.item.rows_per_contact
                 capacity[w], rows_per_slot[w] = p.item.capacity, rps
                 contact_row[w] = p.first_row
                 slot_row.append(p.first_row + rps * np.arange(p.item.capacity))
                 slot_rows.append(np.full(p.item.capacity, rps))
-            cand_start.append(sum(len(c) for c in cand_node))
+            cand_start.append(sum(len(c) for c in cand["node"]))
             slot_start.append(slot_start[-1] + int(capacity[w]))
         self.num_slots = slot_start[-1]
         slot_rows = np.concatenate(slot_rows)
         self.num_entries = int(slot_rows.sum())
+        self.num_rigid_entries = 2 * self.num_entries if model.num_rigid else 0  # the point's body, the solid's
         self.num_candidates = cand_start[-1]
         i32 = lambda v: wp.array(np.asarray(v, dtype=np.int32), dtype=wp.int32, device=d)  # noqa: E731
-        self.kind, self.reach = i32(kind), wp.array(np.array(reach), dtype=wp.float64, device=d)
-        self.mu = wp.array(np.array(mu), dtype=wp.float64, device=d)
-        self.a = wp.array(np.array(a), dtype=wp.vec3d, device=d)
-        self.b = wp.array(np.array(b), dtype=wp.vec3d, device=d)
-        self.radius = wp.array(np.array(radius), dtype=wp.float64, device=d)
-        self.rot = wp.array(np.array(rot), dtype=wp.mat33d, device=d)
+        f64 = lambda v, dtype: wp.array(np.array(v, dtype=float), dtype=dtype, device=d)  # noqa: E731
+        self.kind, self.reach, self.mu = i32(rec["kind"]), f64(rec["reach"], wp.float64), f64(rec["mu"], wp.float64)
+        self.a, self.b, self.rot = f64(rec["a"], wp.vec3d), f64(rec["b"], wp.vec3d), f64(rec["rot"], wp.mat33d)
+        self.radius = f64(rec["radius"], wp.float64)
+        self.owner = i32(rec["owner"])
+        self.a_loc, self.b_loc = f64(rec["a_loc"], wp.vec3d), f64(rec["b_loc"], wp.vec3d)
+        self.rot_loc = f64(rec["rot_loc"], wp.mat33d)
+        self.owned = np.flatnonzero(np.array(rec["owner"]) >= 0)
+        self.owned_d = i32(self.owned if len(self.owned) else [0])
         self._meshes(d)
         # how a point fixed to each obstacle moves over the step: x -> step_rot x + step_shift
-        self.step_rot = wp.array(np.tile(np.eye(3), (len(kind), 1, 1)), dtype=wp.mat33d, device=d)
-        self.step_shift = wp.zeros(len(kind), dtype=wp.vec3d, device=d)
-        self.moving = [i for i, e in enumerate(self.records) if e.motion is not None]
+        n_rec = len(rec["kind"])
+        self.step_rot = wp.array(np.tile(np.eye(3), (n_rec, 1, 1)), dtype=wp.mat33d, device=d)
+        self.step_shift = wp.zeros(n_rec, dtype=wp.vec3d, device=d)
+        self.moving = [i for i, e in enumerate(self.records) if getattr(e, "motion", None) is not None]
         self.obstacles = kernels.Obstacles()  # the records as the kernels take them (the same arrays)
         for name in ("kind", "a", "b", "radius", "rot", "mesh", "tri0", "tri_xyz", "reach"):
             setattr(self.obstacles, name, getattr(self, name))
         self._posed_at = None
-        self.cand_node = i32(np.concatenate(cand_node))
-        self.cand_obstacle = i32(np.concatenate(cand_obstacle))
+        self.cand_node = i32(np.concatenate(cand["node"]))
+        self.points = kernels.Points()
+        self.points.node, self.points.body = self.cand_node, i32(np.concatenate(cand["body"]))
+        self.points.local = f64(np.concatenate(cand["local"]), wp.vec3d)
+        self.points.obstacle = self.cand_obstacle = i32(np.concatenate(cand["obstacle"]))
+        self._no_bodies = None  # the Bodies struct of a model without rigid bodies (inert arrays)
+        self._bodies = {}  # a State's Bodies struct, by the State
         self.world_cand_start = i32(cand_start)
         self.capacity = i32(capacity)  # contact slots per world
         self.slot_start, self.contact_row = i32(slot_start), i32(contact_row)
@@ -122,13 +173,37 @@ class ContactRows(RowKind):
         self.rows_per_slot, self.rows_per_slot_np = i32(rows_per_slot), rows_per_slot
         self.near = wp.zeros(max(self.num_candidates, 1), dtype=wp.int32, device=d)
         self.cand_lam = wp.zeros((max(self.num_candidates, 1), 3), dtype=wp.float64, device=d)  # warm starts (N)
-        self.anchor = wp.zeros(self.num_slots, dtype=wp.vec3d, device=d)  # where each contact's node began (m)
+        self.anchor = wp.zeros(self.num_slots, dtype=wp.vec3d, device=d)  # where each contact's point began (m)
         self.slot_candidate = wp.full(self.num_slots, -1, dtype=wp.int32, device=d)
-        self.found = wp.zeros(worlds, dtype=wp.int32, device=d)  # near nodes per world at the last detection
+        self.slot_point = wp.zeros(self.num_slots, dtype=wp.vec3d, device=d)  # each contact's point (m)
+        self.row_dir = wp.zeros(self.num_entries, dtype=wp.vec3d, device=d)  # each row's direction at it
+        self.found = wp.zeros(worlds, dtype=wp.int32, device=d)  # near points per world at the last detection
         # host copies, read once: what set_time rewrites for moving obstacles, and the slot layout
         self.host = {name: getattr(self, name).numpy().copy() for name in (
-            "a", "b", "rot", "step_rot", "step_shift", "slot_start", "capacity", "contact_row", "slot_entry",
-            "cand_node")}
+            "a", "b", "rot", "step_rot", "step_shift", "slot_start", "capacity", "contact_row", "slot_entry")}
+
+    def bodies(self, state) -> kernels.Bodies:
+        """The rigid bodies of ``state`` as the kernels take them (inert arrays without bodies)."""
+        if state is None or state.body_p is None:
+            if self._no_bodies is None:
+                d = self.model.device
+                self._no_bodies = kernels.Bodies()
+                self._no_bodies.p = self._no_bodies.v = self._no_bodies.w = wp.zeros(1, dtype=wp.vec3d, device=d)
+                self._no_bodies.r = wp.array([[0.0, 0.0, 0.0, 1.0]], dtype=wp.quatd, device=d)
+            return self._no_bodies
+        key = state.body_p.ptr
+        if key not in self._bodies:
+            b = kernels.Bodies()
+            b.p, b.r, b.v, b.w = state.body_p, state.body_r, state.body_v, state.body_w
+            self._bodies[key] = b
+        return self._bodies[key]
+
+    def _pose(self, bodies) -> None:
+        """The rigid bodies' solids where their bodies are (before a detection or an evaluation)."""
+        if len(self.owned):
+            wp.launch(kernels.pose_records, len(self.owned),
+                      inputs=[self.owned_d, self.owner, self.a_loc, self.b_loc, self.rot_loc, bodies, self.obstacles],
+                      device=self.model.device)
 
     def _meshes(self, device) -> None:
         """Each mesh obstacle's BVH (``wp.Mesh``, single precision, kept alive here) and its
@@ -172,37 +247,44 @@ class ContactRows(RowKind):
             array.assign(host)
         self._posed_at = t
 
-    def forces(self, table, world: int, q: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The world's contacts in use (host): their nodes' positions ``(k, 3)`` (m) from ``q``
-        and the force the obstacle puts on each ``(k, 3)`` (N: ``sum_m lambda_m H_m``, the normal
-        force along the normal, friction along the tangents) from the multipliers ``lam``."""
+    def forces(self, table, world: int, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The world's contacts in use (host) at the last evaluation: their points ``(k, 3)`` (m)
+        and the force the solid puts on each ``(k, 3)`` (N: ``sum_m lambda_m d_m`` over the
+        contact's rows' directions, the normal force along the normal, friction along the
+        tangents) from the multipliers ``lam``."""
         h = self.host
         start, cap = int(h["slot_start"][world]), int(h["capacity"][world])
         slots = self.slot_candidate.numpy()[start:start + cap]
         used = int(np.count_nonzero(slots >= 0))
         rps = int(self.rows_per_slot_np[world])
         rows = int(h["contact_row"][world]) + np.arange(used * rps)
-        entries = self.entry_offset + h["slot_entry"][start:start + used, None] + np.arange(rps)
-        coef = table.h_coef.numpy()[entries.ravel()].reshape(used, rps, 3)
-        force = np.einsum("km,kmi->ki", lam[rows].reshape(used, rps), coef)
-        return q[h["cand_node"][slots[:used]]], force
+        entries = h["slot_entry"][start:start + used, None] + np.arange(rps)
+        direction = self.row_dir.numpy()[entries.ravel()].reshape(used, rps, 3)
+        force = np.einsum("km,kmi->ki", lam[rows].reshape(used, rps), direction)
+        return self.slot_point.numpy()[start:start + used].copy(), force
 
     def detect(self, table, q: wp.array, lam: wp.array, friction: wp.array) -> None:
-        """The nodes within contact distance at ``q`` take their world's contact rows; the
-        worlds' force-row counts (actuators + contacts) follow; a contact's multiplier starts
-        from its node's at the last step."""
-        d = self.model.device
+        """The points within contact distance at ``q`` (and the rigid poses of ``table.bodies``)
+        take their world's contact rows; the worlds' force-row counts (actuators + contacts)
+        follow; a contact's multiplier starts from its candidate's at the last step."""
+        d, bodies = self.model.device, self.bodies(table.bodies)
+        self._pose(bodies)
         wp.launch(kernels.mark_candidates, self.num_candidates,
-                  inputs=[q, self.cand_node, self.cand_obstacle, self.obstacles], outputs=[self.near], device=d)
+                  inputs=[q, self.points, self.obstacles, self.owner, bodies, self.model.dt], outputs=[self.near],
+                  device=d)
         wp.launch(kernels.assign_slots, self.model.num_worlds,
-                  inputs=[q, self.world_cand_start, self.near, self.cand_node, self.cand_obstacle, self.mu,
+                  inputs=[q, self.world_cand_start, self.near, self.points, bodies, self.owner, self.mu,
                           self.step_rot, self.step_shift, self.capacity, self.slot_start, self.contact_row,
                           self.rows_per_slot, table.world_actuators_d],
                   outputs=[self.slot_candidate, self.anchor, self.found, table.world_force_rows, lam, friction,
                            self.cand_lam], device=d)
 
     def evaluate(self, table, q) -> None:
+        bodies = self.bodies(table.bodies)
+        self._pose(bodies)
         wp.launch(kernels.contact_rows, self.num_slots,
                   inputs=[q, self.slot_candidate, self.slot_row, self.slot_rows, self.slot_entry, self.anchor,
-                          self.cand_node, self.cand_obstacle, self.obstacles, self.entry_offset],
-                  outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)
+                          self.points, self.obstacles, self.owner, bodies, self.entry_offset,
+                          self.rigid_offset if self.num_rigid_entries else -1],
+                  outputs=[table.delta, table.h_row, table.h_node, table.h_coef, table.j_row, table.j_body,
+                           table.j_lin, table.j_ang, self.slot_point, self.row_dir], device=self.model.device)

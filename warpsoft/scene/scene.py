@@ -20,6 +20,7 @@ from .material import Material
 from .mesh import TetMesh
 from .obstacles import Obstacle, ObstacleEntry, pose_of
 from .regions import Region, as_region
+from .rigid import RigidBody, make_rigid
 
 Vec3 = tuple[float, float, float]
 
@@ -141,6 +142,7 @@ class Scene:
         self.cavities: list[Cavity] = []
         self.effectors: list[Effector] = []
         self.obstacles: list[ObstacleEntry] = []
+        self.rigid_bodies: list[RigidBody] = []
         self.contact_capacity = 64  # contact rows per world (set_contacts)
         self.rayleigh_mass = 0.0
         self.rayleigh_stiffness = 0.0
@@ -308,8 +310,9 @@ class Scene:
         if not isinstance(shape, Obstacle):
             raise SceneError(f"obstacle '{name}': expected one of ws.obstacles (Floor, Ball, Box, Capsule, "
                              f"Cylinder, Mesh), got {type(shape).__name__}")
-        if any(o.name == name for o in self.obstacles):
-            raise SceneError(f"scene '{self.name}': two obstacles are named '{name}'")
+        if any(o.name == name for o in self.obstacles + self.rigid_bodies):
+            raise SceneError(f"scene '{self.name}': two obstacles are named '{name}' (obstacles and rigid "
+                             "bodies share one set of names)")
         if contact_distance is not None:
             contact_distance = _finite(contact_distance, f"obstacle '{name}': contact_distance")
             if contact_distance <= 0:
@@ -324,6 +327,23 @@ class Scene:
         entry = ObstacleEntry(str(name), shape, mu, contact_distance, motion)
         self.obstacles.append(entry)
         return entry
+
+    def add_rigid(self, name: str, shape: Obstacle, density: float | None = None, mass: float | None = None,
+                  inertia=None, velocity: Vec3 = (0.0, 0.0, 0.0), angular_velocity: Vec3 = (0.0, 0.0, 0.0),
+                  mu: float = 0.0, contact_distance: float | None = None, points=None) -> RigidBody:
+        """A rigid body (6 DOF): the solid ``shape`` (``ws.obstacles.Ball``, ``Box``, ``Capsule``,
+        ``Cylinder`` or a closed ``Mesh``) where it is at ``t = 0``, with a ``density`` (kg/m^3)
+        or a ``mass`` (kg); ``inertia`` (kg m^2 about its centre of mass: 3 numbers or 3x3)
+        overrides the solid's. It moves with the same implicit step under gravity and contacts:
+        the bodies' surface nodes touch its solid, with Coulomb friction ``mu``; its ``points``
+        ``(k, 3)`` (m, default: corners, edge and face points of its solid) touch the obstacles and
+        the other rigid bodies. ``contact_distance`` (m) as for obstacles."""
+        if any(r.name == name for r in self.rigid_bodies) or any(o.name == name for o in self.obstacles):
+            raise SceneError(f"scene '{self.name}': a rigid body or obstacle named '{name}' exists already")
+        body = make_rigid(name, shape, density, mass, inertia, velocity, angular_velocity, mu, contact_distance,
+                          points)
+        self.rigid_bodies.append(body)
+        return body
 
     def set_contacts(self, capacity: int) -> None:
         """At most ``capacity`` contacts at once in this scene (default 64); more are reported
@@ -352,10 +372,13 @@ class Scene:
                     )
             elif body.material.density <= 0 and not body.overrides:
                 raise SceneError(f"scene '{self.name}': dynamic body '{body.name}' has density 0 (no mass)")
-        rough = [o.name for o in self.obstacles if o.mu > 0]
+        if self.static and self.rigid_bodies:
+            raise SceneError(f"scene '{self.name}': rigid body '{self.rigid_bodies[0].name}' needs a dynamic scene "
+                             "(a quasi-static step has no inertia to hold a free solid): set static=False")
+        rough = [o.name for o in self.obstacles + self.rigid_bodies if o.mu > 0]
         if self.inverse and rough:
             raise SceneError(f"scene '{self.name}': the inverse model takes frictionless contacts only (its QPCC has "
-                             f"no friction rows), but obstacle '{rough[0]}' has mu > 0; set "
+                             f"no friction rows), but obstacle or rigid body '{rough[0]}' has mu > 0; set "
                              "mu=0.0 or use the direct model")
         if self.inverse:
             if not self.actuators:
