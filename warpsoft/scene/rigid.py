@@ -4,8 +4,8 @@ A rigid body is a solid of :mod:`warpsoft.scene.obstacles` (a ball, box, capsule
 closed triangle mesh) declared where it is at ``t = 0``, with a mass and an inertia (from the
 solid and a density, or given). Its frame is its centre of mass with the world's axes at
 ``t = 0``. Soft bodies' surface nodes touch its solid (contact rows against its signed distance,
-with its friction coefficient); its own collision points (by default its solid's corners, edge
-and face points, or vertices) touch the obstacles and the other rigid bodies. Declared with
+with its friction coefficient); its own collision points (by default its solid's corners, or
+points spread over it, or its vertices) touch the obstacles and the other rigid bodies. Declared with
 :meth:`warpsoft.Scene.add_rigid`.
 """
 
@@ -101,9 +101,10 @@ def mesh_mass_properties(mesh: ob.Mesh, density: float) -> tuple[float, np.ndarr
 
 def collision_points(shape: ob.Obstacle) -> np.ndarray:
     """Default points (m) of a rigid body that touch obstacles and other rigid bodies: a box's 8
-    corners, 12 edge middles and 6 face centres; a ball's 42 points spread over its surface; a
-    cylinder's or capsule's rings (12 around) at its ends and middle (a capsule's also at its
-    poles); a mesh's vertices."""
+    corners, 12 edge middles and 6 face centres (corners alone miss a face resting across
+    another box's edge); a ball's
+    42 points spread over its surface; a cylinder's or capsule's rings (12 around) at its ends
+    and middle (a capsule's also at its poles); a mesh's vertices."""
     if isinstance(shape, ob.Box):
         g = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) != (0, 0, 0)])
         return (0.5 * g * np.asarray(shape.size)) @ np.asarray(shape.rotation).T + np.asarray(shape.center)

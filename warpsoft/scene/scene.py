@@ -336,8 +336,9 @@ class Scene:
         or a ``mass`` (kg); ``inertia`` (kg m^2 about its centre of mass: 3 numbers or 3x3)
         overrides the solid's. It moves with the same implicit step under gravity and contacts:
         the bodies' surface nodes touch its solid, with Coulomb friction ``mu``; its ``points``
-        ``(k, 3)`` (m, default: corners, edge and face points of its solid) touch the obstacles and
-        the other rigid bodies. ``contact_distance`` (m) as for obstacles."""
+        ``(k, 3)`` (m, default: a box's corners, edge middles and face centres,
+        points spread over other solids) touch the
+        obstacles and the other rigid bodies. ``contact_distance`` (m) as for obstacles."""
         if any(r.name == name for r in self.rigid_bodies) or any(o.name == name for o in self.obstacles):
             raise SceneError(f"scene '{self.name}': a rigid body or obstacle named '{name}' exists already")
         body = make_rigid(name, shape, density, mass, inertia, velocity, angular_velocity, mu, contact_distance,

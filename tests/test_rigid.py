@@ -1,0 +1,160 @@
+"""Rigid bodies: mass properties, free fall, resting on the floor, on a soft body and on another
+rigid body, and the Grasper holding or dropping its cube by friction."""
+
+import numpy as np
+import pytest
+
+import warpsoft as ws
+from warpsoft.scene import obstacles as ob
+from warpsoft.scene.rigid import mass_properties
+
+G = 9.81
+
+
+def box_mesh(center, size) -> ob.Mesh:
+    """A closed box of triangles, normals out."""
+    c, h = np.asarray(center), 0.5 * np.asarray(size)
+    v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * h + c
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    tris = [t for a, b, cc, d in faces for t in ((a, b, cc), (a, cc, d))]
+    return ob.Mesh(v, tris)
+
+
+def test_mass_properties_of_solids():
+    m, c, inertia = mass_properties(ob.Box((0.1, 0.2, 0.3), (0.02, 0.04, 0.06)), 1000.0)
+    assert m == pytest.approx(0.048)
+    assert np.allclose(inertia, m / 12 * np.diag([0.04**2 + 0.06**2, 0.02**2 + 0.06**2, 0.02**2 + 0.04**2]))
+    mm, cm, im = mass_properties(box_mesh((0.1, 0.2, 0.3), (0.02, 0.04, 0.06)), 1000.0)  # the same box as triangles
+    assert mm == pytest.approx(m) and np.allclose(cm, c) and np.allclose(im, inertia, rtol=1e-12, atol=1e-15)
+    m, _, inertia = mass_properties(ob.Ball((0, 0, 0), 0.01), 1000.0)
+    assert inertia[0, 0] == pytest.approx(0.4 * m * 1e-4)
+    # a capsule is a cylinder and a ball: its axial inertia adds up
+    r, length = 0.01, 0.04
+    m, c, inertia = mass_properties(ob.Capsule((0, 0, 0), (0, 0, length), r), 1.0)
+    mc, _, ic = mass_properties(ob.Cylinder((0, 0, 0), (0, 0, length), r), 1.0)
+    mb, _, ib = mass_properties(ob.Ball((0, 0, 0), r), 1.0)
+    assert m == pytest.approx(mc + mb) and np.allclose(c, [0, 0, length / 2])
+    assert inertia[2, 2] == pytest.approx(ic[2, 2] + ib[2, 2])
+    assert inertia[0, 0] > ic[0, 0] + ib[0, 0]  # its ends sit away from the middle
+
+
+def drop_scene(drop=0.05, mu=0.5, soft_floor=False):
+    scene = ws.Scene("drop", gravity=(0, 0, -G), dt=0.01)
+    if soft_floor:  # a soft slab on the floor, held at its bottom, the cube on it
+        slab = scene.add_body("slab", ws.mesh_shape(ws.shapes.Box((-0.03, -0.03, 0), (0.06, 0.06, 0.01)), 0.005),
+                              ws.Material(5e4, 0.3, 1000.0))
+        scene.fix(slab, ws.InBox((-1, -1, -1), (1, 1, 1e-4)))
+        scene.set_damping(1.0, 0.0)
+        base = 0.01
+    else:  # a soft pad aside (a scene has a soft body), held above the floor
+        pad = scene.add_body("pad", ws.mesh_shape(ws.shapes.Box((0.1, 0, 0.01), (0.02, 0.02, 0.01)), 0.005),
+                             ws.Material(1e5, 0.3, 1000.0))
+        scene.fix(pad, ws.InBox((-1, -1, -1), (1, 1, 0.0101)))
+        base = 0.0
+    if not soft_floor:  # (the slab is held: its bottom needs no floor)
+        scene.add_obstacle("floor", ws.obstacles.Floor(), mu=mu)
+    scene.add_rigid("cube", ws.obstacles.Box((0, 0, base + 0.0125 + drop), (0.025,) * 3), density=1000.0, mu=mu)
+    scene.set_contacts(128)
+    return scene
+
+
+def test_a_cube_falls_and_rests_on_the_floor_without_drift():
+    """Free fall: implicit Euler's ``z_n = z_0 - g h^2 n (n + 1) / 2`` to round-off (within
+    ``g h t / 2`` of ``g t^2 / 2``); then it lands flat, at its half size, and stays there with
+    no drift in position or orientation, its contacts carrying its weight."""
+    sim = ws.Simulator(drop_scene(), device="cpu")
+    h, z0 = 0.01, 0.0625
+    heights = []
+    for _ in range(60):
+        stats = sim.step()
+        rotation, p = sim.rigid_poses()["cube"]
+        heights.append(p[2])
+    n = np.arange(1, 10)  # in the air (the 10th step would end 4 mm inside the floor: it lands)
+    assert np.allclose(heights[:9], z0 - G * h * h * n * (n + 1) / 2, atol=1e-14, rtol=0)
+    assert np.all(np.abs(np.array(heights[:9]) - (z0 - G * (n * h) ** 2 / 2)) <= G * h * (n * h) / 2 + 1e-14)
+    assert heights[-1] == pytest.approx(0.0125, abs=1e-9)
+    assert np.ptp(heights[-20:]) < 1e-9 and np.allclose(rotation, np.eye(3), atol=1e-9)
+    assert stats.worlds[0].contacts >= 4
+    points, forces = sim.constraint_geometry()["contacts"]
+    weight = sim.model.rigid[0][1].mass * G
+    assert forces[:, 2].sum() == pytest.approx(weight, rel=1e-6)  # the floor carries the cube
+    assert np.all(points[:, 2] > -1e-9)  # none of its points below the floor
+
+
+def test_a_cube_rests_on_a_soft_slab():
+    """The slab's surface nodes carry the cube's weight (the forces the cube puts on them add up
+    to it); the cube sinks by the slab's compression, tens of micrometres, and tilts by no more
+    than that compression across its width (the slab's mesh is not symmetric)."""
+    sim = ws.Simulator(drop_scene(drop=0.0005, soft_floor=True), device="cpu")
+    for _ in range(60):
+        sim.step()
+    rotation, p = sim.rigid_poses()["cube"]
+    points, forces = sim.constraint_geometry()["contacts"]
+    weight = sim.model.rigid[0][1].mass * G
+    assert forces[:, 2].sum() == pytest.approx(-weight, rel=1e-4)
+    sink = 0.0225 - p[2]
+    assert 0.0 < sink < 1e-4
+    tilt = np.arccos(np.clip((np.trace(rotation) - 1) / 2, -1, 1))
+    assert tilt < 2 * sink / 0.025
+
+
+def test_a_cube_rests_on_a_cube():
+    """Rigid on rigid: a cube dropped on another cube stays on it, its points on the lower one's
+    top face; the lower one carries both weights to the floor."""
+    scene = drop_scene(drop=0.0)
+    scene.add_rigid("top", ws.obstacles.Box((0.003, 0.0, 0.025 + 0.0101), (0.02,) * 3), density=1000.0, mu=0.5)
+    sim = ws.Simulator(scene, device="cpu")
+    for _ in range(60):
+        sim.step()
+    poses = sim.rigid_poses()
+    assert poses["top"][1][2] == pytest.approx(0.025 + 0.01, abs=1e-6)
+    assert poses["cube"][1][2] == pytest.approx(0.0125, abs=1e-6)
+    assert np.allclose(poses["top"][0], np.eye(3), atol=1e-6)
+    points, forces = sim.constraint_geometry()["contacts"]
+    floor = np.abs(points[:, 2]) < 1e-6
+    total = sum(rb.mass for _, rb in sim.model.rigid) * G
+    assert forces[floor, 2].sum() == pytest.approx(total, rel=1e-5)
+
+
+@pytest.mark.parametrize("mu, lifted", [(0.8, True), (0.05, False)])
+def test_the_grasper_lifts_its_cube_only_with_friction(scene_module, mu, lifted):
+    """Three fingers squeeze the cube and the palm rises 20 mm: with mu = 0.8 the cube rises
+    with it (friction holds its weight), with mu = 0.05 it stays on the floor; the fingers'
+    nodes never enter it."""
+    grasper = scene_module("scenes/grasper.py")
+    sim = ws.Simulator(grasper.build(mu=mu, dt=0.02), device="cpu")
+    for _ in range(int(2.5 / 0.02)):  # close, lift, hold
+        sim.step()
+    _, p = sim.rigid_poses()["cube"]
+    rise = p[2] - 0.015
+    if lifted:
+        assert rise > 0.018
+    else:
+        assert rise < 0.001
+    cube = sim.model.scenes[0].rigid_bodies[0]
+    rotation, center = sim.rigid_poses()["cube"]
+    inside = cube.shape.moved(rotation, center - rotation @ cube.center).distance(sim.state.positions())
+    assert inside.min() > -2e-4  # no finger node more than 0.2 mm inside the cube
+
+
+def test_bad_rigid_bodies_are_named():
+    scene = ws.Scene("s", gravity=(0, 0, -G))
+    with pytest.raises(ws.SceneError, match="rigid body 'c': give its density"):
+        scene.add_rigid("c", ob.Box((0, 0, 0), (1, 1, 1)))
+    with pytest.raises(ws.SceneError, match="rigid body 'c': mass must be a finite number > 0"):
+        scene.add_rigid("c", ob.Box((0, 0, 0), (1, 1, 1)), mass=-1.0)
+    with pytest.raises(ws.SceneError, match="rigid body 'c': its solid must be"):
+        scene.add_rigid("c", ob.Floor(), mass=1.0)
+    with pytest.raises(ws.SceneError, match="friction coefficient mu must be a finite number >= 0"):
+        scene.add_rigid("c", ob.Ball((0, 0, 0), 0.1), mass=1.0, mu=-0.1)
+    with pytest.raises(ws.SceneError, match="velocity must be 3 finite numbers"):
+        scene.add_rigid("c", ob.Ball((0, 0, 0), 0.1), mass=1.0, velocity=(0, np.nan, 0))
+    with pytest.raises(ws.SceneError, match="inertia must be 3 positive numbers"):
+        scene.add_rigid("c", ob.Ball((0, 0, 0), 0.1), mass=1.0, inertia=(1.0, -1.0, 1.0))
+    open_mesh = ob.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    with pytest.raises(ws.SceneError, match="rigid body 'c': a rigid body's Mesh must be closed"):
+        scene.add_rigid("c", open_mesh, mass=1.0)
+    static = drop_scene()
+    static.static = True
+    with pytest.raises(ws.SceneError, match="rigid body 'cube' needs a dynamic scene"):
+        ws.Simulator(static, device="cpu")
