@@ -158,3 +158,24 @@ def test_bad_rigid_bodies_are_named():
     static.static = True
     with pytest.raises(ws.SceneError, match="rigid body 'cube' needs a dynamic scene"):
         ws.Simulator(static, device="cpu")
+
+
+def test_a_dropped_cube_to_usd_and_report(tmp_path):
+    """The run writes the cube as a prim whose transform follows it, and its pose per step in the
+    report: the transform carries the declared cube's centre to the reported centre."""
+    import json
+
+    from pxr import Usd, UsdGeom
+
+    from warpsoft.io.runner import run
+
+    usd, report = tmp_path / "drop.usda", tmp_path / "drop.json"
+    run(drop_scene(drop=0.01), steps=6, device="cpu", usd=usd, report=report)
+    positions = json.loads(report.read_text())["rigid_bodies"]["cube"]["position"]
+    assert len(positions) == 6 and positions[-1][2] < 0.0225
+    stage = Usd.Stage.Open(str(usd))
+    op = UsdGeom.Xformable(stage.GetPrimAtPath("/World/rigid_bodies/cube")).GetOrderedXformOps()[0]
+    assert len(op.GetTimeSamples()) == 7  # the initial state, then one per step
+    moved = np.array(op.Get(6.0)).T @ np.array([0.0, 0.0, 0.0225, 1.0])  # the declared centre, carried
+    assert np.allclose(moved[:3], positions[-1], atol=1e-12)
+    assert stage.GetPrimAtPath("/World/rigid_bodies/cube/shape").IsA(UsdGeom.Cube)

@@ -27,7 +27,9 @@ class WorldStats:
     (linear solves) and final relative nonlinear residual (see :mod:`warpsoft.newton`); with
     obstacles, its contacts carrying a force, their total normal and friction forces (N, sums of
     each contact's) and its deepest penetration (m); in the direct model, how far each
-    displacement-driven actuator is from its command this step (cable m, cavity m^3)."""
+    displacement-driven actuator is from its command this step (cable m, cavity m^3); with rigid
+    bodies, each one's centre of mass (m) and orientation (unit quaternion x, y, z, w) after the
+    step, by name."""
 
     cg_iterations: int = 0
     resolve_iterations: int = 0
@@ -49,6 +51,7 @@ class WorldStats:
     actuator_lambda: dict[str, float] = field(default_factory=dict)
     effectors: dict[str, np.ndarray] = field(default_factory=dict)
     targets: dict[str, np.ndarray] = field(default_factory=dict)
+    rigid_bodies: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
 
 
 def _of_the_world(name: str):
@@ -112,3 +115,4 @@ class StepStats:
     friction_force = _of_the_world("friction_force")
     penetration = _of_the_world("penetration")
     actuator_residual = _of_the_world("actuator_residual")
+    rigid_bodies = _of_the_world("rigid_bodies")

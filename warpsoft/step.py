@@ -70,6 +70,9 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     watch.inverted_elements(sim, stats, host)
     if rows is not None:
         record_rows(sim, stats, host)  # the rows at the new state: what the report records
+    if sim.rigid is not None:
+        for k, (w, name) in enumerate(sim.rigid.names):
+            stats.worlds[w].rigid_bodies[name] = (host["rigid_p"][k].copy(), host["rigid_r"][k].copy())
     if sim.device_inverse is not None:
         record_device_qp(sim, stats, host)
 

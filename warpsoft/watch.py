@@ -79,9 +79,9 @@ def contacts(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarra
     ws.penetration = float(max(0.0, -gaps.min())) if used else 0.0
     found, capacity = int(host["contacts_found"][w]), int(rows.world_contacts[w]) // rps
     if begins(sim, ("overflow", w), found > capacity):
-        stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: {found} nodes came within contact distance "
-                              f"of an obstacle, more than the scene's {capacity} contact rows: the first {capacity} "
-                              "(in node order) were kept, the others may go through; raise it with "
+        stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: {found} points came within contact distance "
+                              f"of an obstacle or rigid body, more than the scene's {capacity} contact rows: the "
+                              f"first {capacity} (in node order) were kept, the others may go through; raise it with "
                               "scene.set_contacts(capacity)")
 
 

@@ -84,16 +84,22 @@ class RunReport:
             out["effector_error"] = {name: [s.effector_error[name] for s in self.steps] for name in targeted}
         if self.sim.rows.kind("contact") is not None:
             out["contacts"] = {"obstacles": [o.name for o in self.sim.model.scene.obstacles],
+                               "rigid_bodies": [rb.name for rb in self.sim.model.scene.rigid_bodies],
                                "count": [s.contacts for s in self.steps],
                                "normal_force": [s.contact_force for s in self.steps],
                                "friction_force": [s.friction_force for s in self.steps],
                                "penetration": [s.penetration for s in self.steps],
                                "units": "forces N (sums over the contacts), penetration m"}
+        if self.sim.model.rigid:
+            out["rigid_bodies"] = {rb.name: {key: [np.asarray(s.rigid_bodies[rb.name][k]).tolist() for s in self.steps]
+                                             for k, key in enumerate(("position", "orientation"))}
+                                   for _, rb in self.sim.model.rigid}
+            out["rigid_bodies_units"] = "centre of mass m; orientation a unit quaternion (x, y, z, w)"
         if self.sim.model.scene.inverse:
             out["inverse"] = {"epsilon": self.sim.model.scene.inverse_epsilon,
                               "qp_status": [s.qp_status for s in self.steps],
                               "qp_seconds": [s.qp_seconds for s in self.steps]}
-            if self.sim.model.scene.obstacles:  # the QPCC's pivots on the contact set
+            if self.sim.model.scene.obstacles or self.sim.model.scene.rigid_bodies:  # the QPCC's pivots
                 out["inverse"]["qp_pivots"] = [s.qp_pivots for s in self.steps]
         return out
 

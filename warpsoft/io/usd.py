@@ -1,5 +1,5 @@
 """USD export: one stage per run, time-sampled body surfaces, cavity walls, cables, probe,
-effector and target spheres, the obstacles (each kind under a typed Scope) and, when asked,
+effector and target spheres, the obstacles and rigid bodies (each kind under a typed Scope) and, when asked,
 the contacts (points with their forces)."""
 
 from __future__ import annotations
@@ -93,60 +93,66 @@ class UsdWriter:
         _ = Sdf  # imported for its side effect of loading the USD file formats
 
     def _obstacles(self, model: Model, size: float) -> None:
-        """The scene's rigid obstacles as static prims (grey, a floor as a square of 4 model sizes)."""
+        """The scene's obstacles (grey, a floor as a square of 4 model sizes) and rigid bodies
+        (orange) as prims; a moving one (a scheduled obstacle, every rigid body) under a
+        transform sampled per frame."""
+        Gf, Vt, UsdGeom = self._Gf, self._Vt, self._UsdGeom
+        solids = [(w, "obstacles", e.name, e.shape, e.motion is not None) for w, scene in enumerate(model.scenes)
+                  for e in scene.obstacles]
+        solids += [(w, "rigid_bodies", rb.name, rb.shape, True) for w, rb in model.rigid]
+        grey, orange = Vt.Vec3fArray([Gf.Vec3f(0.6, 0.6, 0.62)]), Vt.Vec3fArray([Gf.Vec3f(0.95, 0.55, 0.15)])
+        for w, group, name, shape, moving in solids:
+            self._group(f"/World/{group}")
+            path = f"/World/{group}/{_name(name)}" + (f"_{w}" if model.num_worlds > 1 else "")
+            if moving:  # the solid as declared, under a transform sampled per frame
+                mover = UsdGeom.Xform.Define(self.stage, path)
+                if w == 0:  # (the frames record world 0's rows)
+                    self.movers[name] = mover.AddTransformOp()
+                path += "/shape"
+            self._solid(path, shape, size).CreateDisplayColorAttr(grey if group == "obstacles" else orange)
+
+    def _solid(self, path: str, shape, size: float):
+        """One solid of ``ws.obstacles`` as a USD prim at ``path`` (where it was declared)."""
         from ..scene import obstacles as ob
 
         Gf, Vt, UsdGeom = self._Gf, self._Vt, self._UsdGeom
-        entries = [(w, e) for w, scene in enumerate(model.scenes) for e in scene.obstacles]
-        if not entries:
-            return
-        UsdGeom.Scope.Define(self.stage, "/World/obstacles")
-        grey = Vt.Vec3fArray([Gf.Vec3f(0.6, 0.6, 0.62)])
-        for w, entry in entries:
-            path = f"/World/obstacles/{_name(entry.name)}" + (f"_{w}" if model.num_worlds > 1 else "")
-            shape = entry.shape
-            if entry.motion is not None:  # the solid as declared, under a transform sampled per frame
-                mover = UsdGeom.Xform.Define(self.stage, path)
-                if w == 0:  # (the frames record world 0's rows)
-                    self.movers[entry.name] = mover.AddTransformOp()
-                path += "/shape"
-            if isinstance(shape, ob.Floor):
-                n = np.asarray(shape.normal) / np.linalg.norm(shape.normal)
-                u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-                u /= np.linalg.norm(u)
-                v = np.cross(n, u)
-                c = np.asarray(shape.point)
-                corners = [c + 2 * size * (su * u + sv * v) for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
-                prim = UsdGeom.Mesh.Define(self.stage, path)
-                prim.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, p)) for p in corners]))
-                prim.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
-                prim.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))
-                prim.CreateDoubleSidedAttr(True)
-            elif isinstance(shape, ob.Mesh):
-                prim = UsdGeom.Mesh.Define(self.stage, path)
-                prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(shape.vertices.astype(np.float32)))
-                prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(shape.triangles)))
-                prim.CreateFaceVertexIndicesAttr(Vt.IntArray(shape.triangles.ravel().tolist()))
-                prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-                prim.AddTransformOp().Set(_placement(shape.translation, shape.rotation, Gf))
-            elif isinstance(shape, ob.Ball):
-                prim = UsdGeom.Sphere.Define(self.stage, path)
-                prim.CreateRadiusAttr(shape.radius)
-                prim.AddTranslateOp().Set(Gf.Vec3d(*shape.center))
-            elif isinstance(shape, ob.Box):
-                prim = UsdGeom.Cube.Define(self.stage, path)
-                prim.CreateSizeAttr(1.0)
-                prim.AddTransformOp().Set(_placement(np.asarray(shape.center), np.asarray(shape.rotation), Gf))
-                prim.AddScaleOp().Set(Gf.Vec3f(*map(float, shape.size)))
-            else:  # a capsule or a cylinder, along its axis a -> b
-                a, b = np.asarray(shape.a), np.asarray(shape.b)
-                kind = UsdGeom.Capsule if isinstance(shape, ob.Capsule) else UsdGeom.Cylinder
-                prim = kind.Define(self.stage, path)
-                prim.CreateRadiusAttr(shape.radius)
-                prim.CreateHeightAttr(float(np.linalg.norm(b - a)))
-                prim.CreateAxisAttr(UsdGeom.Tokens.z)
-                prim.AddTransformOp().Set(_placement(0.5 * (a + b), _turn_z_to(b - a), Gf))
-            prim.CreateDisplayColorAttr(grey)
+        if isinstance(shape, ob.Floor):
+            n = np.asarray(shape.normal) / np.linalg.norm(shape.normal)
+            u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+            u /= np.linalg.norm(u)
+            v = np.cross(n, u)
+            c = np.asarray(shape.point)
+            corners = [c + 2 * size * (su * u + sv * v) for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+            prim = UsdGeom.Mesh.Define(self.stage, path)
+            prim.CreatePointsAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, p)) for p in corners]))
+            prim.CreateFaceVertexCountsAttr(Vt.IntArray([4]))
+            prim.CreateFaceVertexIndicesAttr(Vt.IntArray([0, 1, 2, 3]))
+            prim.CreateDoubleSidedAttr(True)
+        elif isinstance(shape, ob.Mesh):
+            prim = UsdGeom.Mesh.Define(self.stage, path)
+            prim.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(shape.vertices.astype(np.float32)))
+            prim.CreateFaceVertexCountsAttr(Vt.IntArray([3] * len(shape.triangles)))
+            prim.CreateFaceVertexIndicesAttr(Vt.IntArray(shape.triangles.ravel().tolist()))
+            prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+            prim.AddTransformOp().Set(_placement(shape.translation, shape.rotation, Gf))
+        elif isinstance(shape, ob.Ball):
+            prim = UsdGeom.Sphere.Define(self.stage, path)
+            prim.CreateRadiusAttr(shape.radius)
+            prim.AddTranslateOp().Set(Gf.Vec3d(*shape.center))
+        elif isinstance(shape, ob.Box):
+            prim = UsdGeom.Cube.Define(self.stage, path)
+            prim.CreateSizeAttr(1.0)
+            prim.AddTransformOp().Set(_placement(np.asarray(shape.center), np.asarray(shape.rotation), Gf))
+            prim.AddScaleOp().Set(Gf.Vec3f(*map(float, shape.size)))
+        else:  # a capsule or a cylinder, along its axis a -> b
+            a, b = np.asarray(shape.a), np.asarray(shape.b)
+            kind = UsdGeom.Capsule if isinstance(shape, ob.Capsule) else UsdGeom.Cylinder
+            prim = kind.Define(self.stage, path)
+            prim.CreateRadiusAttr(shape.radius)
+            prim.CreateHeightAttr(float(np.linalg.norm(b - a)))
+            prim.CreateAxisAttr(UsdGeom.Tokens.z)
+            prim.AddTransformOp().Set(_placement(0.5 * (a + b), _turn_z_to(b - a), Gf))
+        return prim
 
     def _sphere(self, path: str, color) -> object:
         Gf, Vt = self._Gf, self._Vt
