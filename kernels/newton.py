@@ -147,3 +147,14 @@ def moved(q: wp.array(dtype=wp.vec3d), q_lin: wp.array(dtype=wp.vec3d), flag: wp
     a, b = q[i], q_lin[i]
     if not (a[0] == b[0] and a[1] == b[1] and a[2] == b[2]):  # NaN differs from everything
         flag[0] = 1
+
+
+@wp.kernel
+def prescribed_slope(e: wp.array(dtype=wp.vec3d), d: wp.array(dtype=wp.vec3d), a_d: wp.array2d(dtype=wp.vec3d),
+                     world: wp.array(dtype=wp.int32), sums: wp.array3d(dtype=wp.float64)):
+    """The first iteration's energy with the kinematic frames' prescribed move ``d`` (``a_d = A d``)
+    counted in: ``(d + e) . A (d + e) = e . A e + (2 e + d) . A d`` (``e`` is 0 where ``d`` is
+    not). Measured against ``e`` alone, a frame's move would look like a large deformation and
+    let a step go unconverged."""
+    i = wp.tid()
+    wp.atomic_add(sums, 0, world[i], SLOPE, wp.dot(wp.float64(2.0) * e[i] + d[i], a_d[0, i]))

@@ -33,7 +33,7 @@ def finger_shape(inner: float, side: int, y: float, top: float, length: float, t
 def build(mu=0.8, floor_mu=0.5, cube_size=0.03, cube_mass=0.01, length=0.06, thickness=0.012, width=0.012,
           gap=0.004, notches=3, notch_depth=0.004, notch_width=0.003, young_modulus=600e3, poisson_ratio=0.45,
           density=1070.0, gravity=9.81, dt=0.01, rayleigh_mass=0.5, rayleigh_stiffness=0.01, mesh_size=0.008,
-          close=0.008, lift=0.02, times=(1.0, 2.0, 2.5, 3.0, 3.5)):
+          close=0.008, lift=0.02, times=(1.0, 2.0, 2.5, 3.0, 3.5), contact_distance=0.001):
     """Fingers ``length`` x ``thickness`` x ``width`` (m), ``gap`` (m) from the cube's faces at
     rest, their tips ``gap`` above the floor; a cube of ``cube_size`` (m) and ``cube_mass`` (kg)
     with friction ``mu`` against the fingers (``floor_mu`` on the floor). The sequence, at
@@ -67,6 +67,7 @@ def build(mu=0.8, floor_mu=0.5, cube_size=0.03, cube_mass=0.01, length=0.06, thi
                         pull_motion=palm, max_displacement=2 * close)
         scene.add_probe(f"{name}_tip", (side * (inner + thickness / 2), y, top - length))
     scene.add_obstacle("floor", ws.obstacles.Floor(), mu=floor_mu)
-    scene.add_rigid("cube", ws.obstacles.Box((0.0, 0.0, half), (cube_size,) * 3), mass=cube_mass, mu=mu)
+    scene.add_rigid("cube", ws.obstacles.Box((0.0, 0.0, half), (cube_size,) * 3), mass=cube_mass, mu=mu,
+                    contact_distance=contact_distance)
     scene.set_contacts(96)
     return scene

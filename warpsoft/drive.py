@@ -1,11 +1,13 @@
 """Kinematic frames: fixed regions carried by a motion (a moving base, a gripper's palm).
 
 A region fixed with ``Scene.fix(..., motion=...)`` keeps its nodes out of the solve (as any fixed
-region) but moves them: at each step's start they are put where the frame will be at the
-step's end (their rest positions under the pose ``motion(t)``), along their fixed axes; the
-step is then linearized there, so the elements they pull on feel the move in the same step
-(one implicit step of a prescribed displacement). The schedules are called once per step on
-the host and their targets uploaded in one copy; nothing of this runs in a scene without one.
+region) but moves them: each step prescribes their displacement, from where they are to where
+the frame will be at the step's end (their rest positions under the pose ``motion(t)``, along
+their fixed axes). The step's first solve takes it as a known part of ``dx``: the free nodes
+solve ``A_ff e = r_f - A_fd dx_d`` (one operator product moves it to the right-hand side), so
+the elements they pull on feel the move in the same step, at the linearization the last step
+left (no extra one). The schedules are called once per step on the host and their targets
+uploaded in one copy; nothing of this runs in a scene without one.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ class DrivenNodes:
         self.axes = wp.array(np.concatenate([g[3] for g in model.driven]), dtype=wp.vec3d, device=d)
         self.host = self.rest.copy()
         self.target = wp.array(self.host, dtype=wp.vec3d, device=d)
+        self.a_dx = wp.zeros((1, model.num_nodes), dtype=wp.vec3d, device=d)  # A dx of the prescribed move
 
     def set_time(self, t: float) -> None:
         """Where every frame carries its nodes at time ``t`` (s), uploaded in one copy."""
@@ -45,9 +48,11 @@ class DrivenNodes:
             self.host[sl] = self.rest[sl] @ rotation.T + translation
         self.target.assign(self.host)
 
-    def apply(self, q: wp.array, v: wp.array) -> None:
-        """Move the driven nodes of the state ``(q, v)`` to their targets (device; capturable)."""
+    def prescribe(self, q: wp.array, dx: wp.array, rhs: wp.array, operator, mask: wp.array) -> None:
+        """The step starts with the driven nodes' move in ``dx`` (``(1, n)``, from ``q``) and its
+        pull on the free nodes taken off ``rhs[0]`` (device; capturable)."""
         m = self.model
-        wp.launch(kernels.drive_nodes, len(self.rest),
-                  inputs=[self.ids, self.target, self.axes, 0.0 if m.static else 1.0 / m.dt], outputs=[q, v],
+        wp.launch(kernels.prescribe, len(self.rest), inputs=[self.ids, self.target, self.axes, q], outputs=[dx],
                   device=m.device)
+        operator.apply(dx, self.a_dx)
+        wp.launch(kernels.lift_rhs, m.num_nodes, inputs=[mask, self.a_dx], outputs=[rhs], device=m.device)

@@ -121,11 +121,14 @@ class Newton:
         wp.copy(self.q_lin, q)
 
     def start(self) -> None:
-        """The step so far is nothing: ``dx = 0``; the first solve's right-hand side ``r(0)``."""
+        """The step so far is nothing (``dx = 0``) but the kinematic frames' prescribed move; the
+        first solve's right-hand side ``r(0)`` (less the move's pull on the free nodes)."""
         sim, m = self.sim, self.sim.model
         self.dx.zero_()
         wp.launch(kernels.start, m.num_nodes, inputs=[sim.state.v, self.mass, sim.f_int, sim.f_ext, m.mask, self.c_v,
                                                        self.c_f], outputs=[sim.rhs], device=m.device)
+        if sim.driven is not None:  # the kinematic frames' nodes: their move is known
+            sim.driven.prescribe(sim.state.q, self.dx, sim.rhs, sim.operator, m.mask)
 
     def hold_done_worlds(self) -> None:
         """Worlds done iterating get no correction (their first solve column is 0)."""
@@ -149,6 +152,9 @@ class Newton:
             self.slope0.zero_()
             launch_nodes(kernels.slope, 1, m.num_nodes, [sim.rhs, m.mask, lam, starts, counts, sim.constraint_scale,
                                                          e, m.node_world, self.slope0], m.device)
+            if sim.driven is not None and self.accepted == 0:  # the step's first correction: with the frames' move
+                wp.launch(kernels.prescribed_slope, m.num_nodes, inputs=[e, self.dx_base, sim.driven.a_dx,
+                                                                         m.node_world, self.slope0], device=m.device)
         if actuated and not retry:
             wp.copy(self.lam_full, sim.gauss_seidel.lam)
         if actuated:

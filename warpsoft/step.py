@@ -158,8 +158,6 @@ def begin(sim: Simulator, actuated: bool) -> None:
     actuators, their columns ``H_a^T``; the first right-hand side ``b = P(f_int + f_ext)``
     (quasi-static) or ``P(h (f_int + f_ext) + M v)``."""
     q = sim.state.q
-    if sim.driven is not None:  # the kinematic frames' nodes go where the step ends (then linearized there)
-        sim.driven.apply(q, sim.state.v)
 
     def again() -> None:  # the state changed since the last step linearized it
         linearize(sim, q)
@@ -186,6 +184,8 @@ def begin(sim: Simulator, actuated: bool) -> None:
             sim.rows.actuator_columns(sim.columns)  # the columns of this step's contacts
         wp.copy(sim.newton.delta_start, sim.rows.delta)  # the actuators' per-step limits count from here
     sim.newton.start()
+    if actuated and sim.driven is not None:  # the rows after the frames' move: it is part of the step
+        sim.rows.shift(sim.newton.dx)
     if sim.rigid is not None:
         sim.rigid.start(sim.state)  # the rigid bodies' free motion
 

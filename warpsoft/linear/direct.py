@@ -39,12 +39,16 @@ class SparseDirect:
     def solve(self, b: wp.array, x: wp.array) -> SolveResult:
         """``x[c] = A^-1 b[c]`` for ``(k, n)`` vec3d arrays. Zero columns (contact slots that
         no contact took this step) are not solved: they stay 0."""
-        host = b.numpy()
-        used = np.flatnonzero(np.any(host != 0.0, axis=(1, 2)))
-        out = np.zeros_like(host)
+        flat = b.numpy().reshape(b.shape[0], -1)  # on the CPU device, views: no copy
+        used = np.flatnonzero(flat.any(axis=1))
+        on_host = x.device.is_cpu
+        out = x.numpy().reshape(flat.shape) if on_host else np.empty_like(flat)
+        out.fill(0.0)
         if len(used):
-            out[used] = self.solve_array(host[used])
-        x.assign(out)
+            free = self.assembly.free
+            out[np.ix_(used, free)] = self.factor.solve(np.ascontiguousarray(flat[np.ix_(used, free)].T)).T
+        if not on_host:
+            x.assign(out.reshape(x.shape[0], -1, 3))
         return SolveResult(0, 0.0, True)
 
     def solve_array(self, b: np.ndarray) -> np.ndarray:

@@ -219,6 +219,12 @@ class Rows:
                   outputs=[self.delta_free], device=self.device)
         return self.delta_free
 
+    def shift(self, dx: wp.array) -> None:
+        """``delta += H dx`` (device) for a known motion ``dx`` (``(1, n)`` vec3d, m): the rows
+        after it, to first order (a kinematic frame's move, taken as part of the step)."""
+        wp.launch(kernels.rows_times_vector, self.num_entries, inputs=[self.h_row, self.h_node, self.h_coef, dx, 0],
+                  outputs=[self.delta], device=self.device)
+
     def correct(self, dx_free: wp.array, x: wp.array, lam: wp.array, scale: float, dx: wp.array) -> None:
         """``dx = dx_free + scale X lambda`` (m): ``dx_free`` ``(n,)``, the columns ``x``
         ``(columns, n)``, ``lam`` per row (the force rows in use)."""
