@@ -146,6 +146,11 @@ class Simulator:
             if not self.device_inverse.usable:
                 raise SceneError(f"Simulator: qp='device' takes at most {NMAX} actuators per world, got "
                                  f"{int(max(self.rows.world_actuators))}; use qp='piqp'")
+        # On CUDA, direct-model worlds with contacts sweep their Gauss-Seidel on the host, between
+        # two graphs (as the host QP): hundreds of contact rows swept by one device thread cost
+        # 25 times what the CPU takes (the Grasper: 74 ms a step on an H200, docs/performance.md)
+        self.host_gauss_seidel = d.is_cuda and self.rows is not None and any(
+            not s.inverse and self.rows.world_contacts[w] for w, s in enumerate(m.scenes))
         self.last_effector_error: dict[int, float] = {}  # per inverse world, m (is its target getting closer?)
         self.episodes: dict[tuple, bool] = {}  # (what, world) -> whether a warning about it is in force
         self.row_delta_prev = np.zeros(self.rows.num_rows if self.rows is not None else 0)  # rows after the last step
@@ -184,7 +189,7 @@ class Simulator:
                     after["qp"] = self.device_inverse.result
                 self.before_qp = Readback({"W": self.rows.W, "delta_free": self.rows.delta_free,
                                            "delta": self.newton.delta_start, "lam": gs.lam,
-                                           "force_rows": self.rows.world_force_rows}, d)
+                                           "force_rows": self.rows.world_force_rows, "friction": gs.friction}, d)
             contact = self.rows.kind("contact")
             if contact is not None:
                 after["contacts_found"] = contact.found

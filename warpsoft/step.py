@@ -46,12 +46,13 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     actuated = rows is not None and rows.num_columns > 0  # rows that carry a force: actuators, contacts
     inverse = actuated and any(s.inverse and rows.world_actuators[w] for w, s in enumerate(m.scenes))
     host_qp = inverse and sim.device_inverse is None
+    host_resolve = host_qp or sim.host_gauss_seidel  # the step splits into two graphs around it
     host_inputs(sim, stats.time, controls)  # user schedules, evaluated once; uploads only when they change
     newton = sim.newton
     newton.begin_step()
     first = True
     while True:
-        host = iterate(sim, stats, actuated, host_qp, first)
+        host = iterate(sim, stats, actuated, host_resolve, first)
         while newton.judge(host):  # line search: a world that overshot retries a shorter step
             host = run(sim, stats, "line_search", [("correct", lambda: newton.advance(correction(sim, actuated, False),
                                                                                       actuated, retry=True)),
@@ -82,7 +83,8 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     return stats
 
 
-def iterate(sim: Simulator, stats: StepStats, actuated: bool, host_qp: bool, first: bool) -> dict[str, np.ndarray]:
+def iterate(sim: Simulator, stats: StepStats, actuated: bool, host_resolve: bool,
+            first: bool) -> dict[str, np.ndarray]:
     """One Newton iteration (the first also starts the step), read back in one transfer."""
     captured = capturable(sim)
     solve = [("linearize", lambda: begin(sim, actuated))] if first else []
@@ -91,10 +93,10 @@ def iterate(sim: Simulator, stats: StepStats, actuated: bool, host_qp: bool, fir
         solve += [("compliance", lambda: compliance(sim)), ("resolve", lambda: resolve_on_device(sim))]
     finish = [("correct", lambda: sim.newton.advance(correction(sim, actuated), actuated)),
               ("linearize", lambda: relinearize(sim, actuated))]
-    if host_qp:  # two graphs around the host QP
+    if host_resolve:  # two graphs around the host's QP or Gauss-Seidel
         before = run(sim, stats, "device_before_qp" if first else "newton_before_qp", solve, captured, sim.before_qp)
         with stage(sim, stats, "resolve"):
-            resolve_inverse(sim, stats, before)
+            resolve_on_host(sim, stats, before)
         host = run(sim, stats, "device_after_qp", finish, captured)
     else:  # the whole iteration as one graph
         host = run(sim, stats, "device_step" if first else "newton_step", solve + finish, captured)
@@ -325,10 +327,22 @@ def resolve_on_device(sim: Simulator) -> None:
     inverse-model worlds' QP when it runs on the device (each leaves the other's multipliers
     alone). The actuators' per-step limits count from the rows at the step's start."""
     rows, start = sim.rows, sim.newton.delta_start
-    if any(not s.inverse for s in sim.model.scenes):
+    if any(not s.inverse for s in sim.model.scenes) and not sim.host_gauss_seidel:
         sim.gauss_seidel.solve(rows.W, rows.delta_free, start)
     if sim.device_inverse is not None:
         sim.device_inverse.solve(rows.W, rows.delta_free, start, sim.gauss_seidel.inputs, sim.gauss_seidel.lam)
+
+
+def resolve_on_host(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
+    """Between the two graphs, from one read (``host``): the direct-model worlds' Gauss-Seidel
+    when it runs on the host, then the inverse-model worlds' QPs; the multipliers go back in one
+    copy."""
+    if sim.host_gauss_seidel:
+        sim.gauss_seidel.solve_host(host)
+    if any(s.inverse for s in sim.model.scenes) and sim.device_inverse is None:
+        resolve_inverse(sim, stats, host)
+    else:
+        sim.gauss_seidel.lam.assign(host["lam"])
 
 
 def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:

@@ -127,6 +127,25 @@ class GaussSeidel:
             self.inputs.assign(self.host)
             self._uploaded = values.copy()
 
+    def solve_host(self, host: dict[str, np.ndarray]) -> None:
+        """The same sweeps on the host (Warp's CPU device), from the arrays of one read ``host``
+        (``W``, ``delta_free``, ``delta`` at the step's start, ``lam``, ``force_rows``,
+        ``friction``): ``host["lam"]`` is updated in place and the sweeps' ``result`` copied to the
+        device. On CUDA, one thread per world sweeping a few hundred contact rows runs at its
+        single thread's latency (measured 0.5 ms a sweep on an H200, 0.02 ms on the CPU VM)."""
+        rows, cpu = self.rows, "cpu"
+        f64 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.float64), dtype=wp.float64, device=cpu)  # noqa: E731
+        i32 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device=cpu)  # noqa: E731
+        lam, result = f64(host["lam"]), wp.zeros((rows.num_worlds, 3), dtype=wp.float64, device=cpu)
+        direct = [0 if s.inverse else 1 for s in rows.model.scenes]
+        wp.launch(kernels.projected_gauss_seidel, rows.num_worlds,
+                  inputs=[f64(host["W"]), f64(host["delta_free"]), f64(host["delta"]), f64(self.host),
+                          i32(rows.world_row_start), i32(host["force_rows"]), i32(direct), f64(host["friction"]),
+                          self.max_iterations, self.tolerance],
+                  outputs=[lam, result], device=cpu)
+        host["lam"][:] = lam.numpy()
+        self.result.assign(result.numpy())
+
     def solve(self, W: wp.array, delta_free: wp.array, delta_now: wp.array) -> None:
         """``lam`` of every direct-model world's force rows in use (actuators, contacts) from ``W``
         ``(rows, columns)``, ``delta_free`` and the rows' values at the start of the step
