@@ -15,7 +15,8 @@ import warpsoft as ws
 def build(length=0.195, base_radius=0.013, tip_radius=0.005, young_modulus=450e3, poisson_ratio=0.45,
           total_mass=0.042, gravity=9.81, dt=0.02, rayleigh_mass=0.1, rayleigh_stiffness=0.02, mesh_size=0.006,
           sweep=0.025, period=4.0, target=None, neck=0.85, max_long=0.07, max_short=0.04, max_step=0.001,
-          static=False, obstacles=False, post_radius=0.008, post_x=0.13, post_gap=0.004):
+          static=False, obstacles=False, post_radius=0.008, post_x=0.13, post_gap=0.004, base_travel=0.0,
+          base_period=None):
     """Cables shorten by at most ``max_long`` / ``max_short`` (m) and ``max_step`` (m) per step
     (SoftRobots: 70 mm, 40 mm, 1 mm). ``target`` (x, y, z) (m) fixes the tip alone; by default
     the tip and the neck (at ``neck * length``) follow ``y = sweep sin(2 pi t / period)``,
@@ -23,13 +24,21 @@ def build(length=0.195, base_radius=0.013, tip_radius=0.005, young_modulus=450e3
 
     ``obstacles=True``: two upright rigid posts of ``post_radius`` (m) at ``x = post_x``, one on
     each side, ``post_gap`` (m) from the trunk's surface at rest; the sweep presses the trunk
-    against them and the inverse model (a QPCC) steers the tip around what they hold."""
+    against them and the inverse model (a QPCC) steers the tip around what they hold.
+
+    ``base_travel`` (m): the base slides back and forth along the trunk's axis by this much
+    (``x = base_travel sin(2 pi t / base_period)``, ``base_period`` the sweep's by default), its
+    cable motors with it (a kinematic frame); the inverse model keeps the tip on its target."""
     shape = ws.Cone((0.0, 0.0, 0.0), (length, 0.0, 0.0), base_radius, tip_radius)
     scene = ws.Scene("trunk", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=int(round(period / dt)))
     trunk = scene.add_body("trunk", ws.mesh_shape(shape, mesh_size, name="trunk"),
                            ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
-    scene.fix(trunk, ws.InBox((-0.001, -0.02, -0.02), (0.02, 0.02, 0.02)))  # SoftRobots' 20 mm base box
+    base = None
+    if base_travel:
+        def base(t, travel=base_travel, period=base_period or period):  # the sliding base (m)
+            return np.array([travel * math.sin(2 * math.pi * t / period), 0.0, 0.0])
+    scene.fix(trunk, ws.InBox((-0.001, -0.02, -0.02), (0.02, 0.02, 0.02)), motion=base)  # SoftRobots' 20 mm base box
 
     def radius(x):
         return base_radius + (tip_radius - base_radius) * x / length
@@ -42,7 +51,7 @@ def build(length=0.195, base_radius=0.013, tip_radius=0.005, young_modulus=450e3
             points = [tuple(np.array([x, 0.0, 0.0]) + share * radius(x) * u) for x in xs]
             pull = tuple(np.array([-0.01, 0.0, 0.0]) + share * base_radius * u)
             scene.add_cable(f"{kind}{k}", trunk, points=points, pull_point=pull, min_displacement=0.0,
-                            max_displacement=bound, max_step=max_step)
+                            max_displacement=bound, max_step=max_step, pull_motion=base)
     if obstacles:  # frictionless: the inverse model's contacts have no friction rows
         side = radius(post_x) + post_gap + post_radius
         for name, y in (("left_post", side), ("right_post", -side)):
