@@ -83,7 +83,7 @@ def test_bad_motions_are_named():
 
 
 def test_the_trunk_keeps_its_tip_on_target_while_its_base_slides(scene_module):
-    """The Trunk's base and motors slide 9.5 mm along its axis: its clamped nodes follow the frame
+    """The Trunk's base and motors slide 10 mm along its axis and back: its clamped nodes follow the frame
     exactly, and the inverse model keeps the tip within 0.1 mm of a fixed target."""
     trunk = scene_module("scenes/trunk.py")
     scene = trunk.build(base_travel=0.01, base_period=1.0, target=(0.19, 0.02, 0.0), static=True)
@@ -92,5 +92,5 @@ def test_the_trunk_keeps_its_tip_on_target_while_its_base_slides(scene_module):
         stats = sim.step()
     driven = sim.driven
     assert np.abs(sim.state.positions()[driven.ids.numpy()] - driven.host).max() < 1e-12
-    assert np.abs(driven.host - driven.rest)[:, 0].max() > 0.009  # it did slide
+    assert np.abs(driven.host - driven.rest)[:, 0].max() > 0.005  # it slid (10 mm at t = 0.25 s, 5.9 now)
     assert stats.worlds[0].effector_error["tip"] < 1e-4
