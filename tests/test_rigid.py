@@ -194,3 +194,15 @@ def test_gauss_seidel_on_the_host_equals_the_device_one():
     assert b.worlds[0].contacts > 0 and b.worlds[0].resolve_iterations == a.worlds[0].resolve_iterations
     assert np.array_equal(device.state.positions(), host.state.positions())
     assert np.array_equal(device.rigid_poses()["cube"][1], host.rigid_poses()["cube"][1])
+
+
+def test_two_worlds_of_one_scene_drop_their_own_cubes():
+    """The same scene twice in one model: each world's cube lands on its own floor as alone."""
+    alone = ws.Simulator(drop_scene(drop=0.005), device="cpu")
+    scene = drop_scene(drop=0.005)
+    both = ws.Simulator(ws.finalize([scene, scene], "cpu"))
+    for _ in range(12):
+        alone.step()
+        both.step()
+    for w in range(2):
+        assert np.allclose(both.rigid_poses(w)["cube"][1], alone.rigid_poses()["cube"][1], atol=1e-12)

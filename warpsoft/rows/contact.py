@@ -75,7 +75,7 @@ class ContactRows(RowKind):
         capacity, slot_start, contact_row = np.zeros(worlds, np.int32), [0], np.zeros(worlds, np.int32)
         rows_per_slot, slot_row, slot_rows = np.ones(worlds, np.int32), [], []
         by_world = {p.world: p for p in placed}
-        rigid_index = {id(rb): k for k, (_, rb) in enumerate(model.rigid)}
+        rigid_index = {(w, id(rb)): k for k, (w, rb) in enumerate(model.rigid)}  # (a scene may serve two worlds)
 
         def add(entry, pack, owner, reach, mu, nodes=None, body=None):  # one record and its candidates
             k, pa, pb, r, R = pack
@@ -111,7 +111,7 @@ class ContactRows(RowKind):
                 for info in (b for b in model.bodies if b.world == w):
                     body = next(bd for bd in model.scenes[w].bodies if bd.name == info.name)
                     softs.append((np.unique(info.surface), 0.25 * mean_surface_edge(body.mesh)))
-                rigids = [(rigid_index[id(rb)], RIGID_REACH * rb.size) for rb in p.item.rigid]
+                rigids = [(rigid_index[(w, id(rb))], RIGID_REACH * rb.size) for rb in p.item.rigid]
                 for entry in p.item.obstacles:  # obstacles: every soft body's nodes, every rigid body's points
                     pack = entry.at(0.0).pack()
                     for nodes, reach in softs:
