@@ -442,3 +442,23 @@ def test_obstacles_are_checked_and_only_declared_ones_run():
     plain, _ = block()
     plain.obstacles.clear()
     assert ws.Simulator(plain).rows is None  # no obstacle, no effector, no actuator: no row at all
+
+
+def test_the_octoleg_folds_over_its_cylinder_onto_the_floor(scene_module):
+    """The arm's cable bends it over the cylinder until its tip rests on the floor: contacts on
+    both solids, none entered, the tip at the floor's height, the cable held at its motor's force
+    limit (the command is more than the arm can follow once it lies on them)."""
+    octoleg = scene_module("scenes/octoleg.py")
+    scene = octoleg.build()
+    sim = ws.Simulator(scene, device="cpu")
+    for _ in range(60):
+        stats = sim.step()
+    points, forces = sim.constraint_geometry()["contacts"]
+    cylinder, floor = (e.shape for e in scene.obstacles)
+    carrying = np.linalg.norm(forces, axis=1) > 1e-6
+    assert np.any(np.abs(cylinder.distance(points[carrying])) < 1e-6)
+    assert np.any(np.abs(floor.distance(points[carrying])) < 1e-6)
+    q = sim.state.positions()
+    assert min(cylinder.distance(q).min(), floor.distance(q).min()) > -1e-9
+    assert sim.probe_positions()["tip"][2] == pytest.approx(-0.03, abs=2e-3)
+    assert stats.worlds[0].actuator_lambda["cable"] == pytest.approx(0.5)

@@ -43,13 +43,14 @@ SCENES = [
     ("trunk_obstacles", "scenes/trunk.py", {"obstacles": True}),  # between two posts: contacts, QPCC
     # three fingers on a moving palm lifting a rigid cube by friction: timed as it rises in their grip
     ("grasper", "scenes/grasper.py", {}, 120),
+    ("octoleg", "scenes/octoleg.py", {}, 30),  # an arm folded over a cylinder onto the floor by its cable
     # the finger at a time step too large for one linearization: what its Newton iterations cost
     ("finger_dt_0.5", "scenes/finger.py", {"dt": 0.5}),
 ]
 
 # SOFA SoftRobots, Table 1 of Coevoet et al. 2017 (Intel i5-4590, one thread), ms per step
 PAPER_MS = {"diamond_inverse": 22.0, "diamond_inverse_softrobots_mesh": 22.0, "trunk": 29.0, "trunk_obstacles": 29.0,
-            "grasper": 5.0}
+            "grasper": 5.0, "octoleg": 1.7}
 
 # v1 and v2 per device: the solver (and options) each release used by default there
 CONFIGS = {
