@@ -141,22 +141,37 @@ class Box(Obstacle):
 
 
 @dataclass(frozen=True)
-class Capsule(Obstacle):
-    """The points within ``radius`` (m) of the segment from ``a`` to ``b`` (m)."""
+class _Axial(Obstacle):
+    """A solid around the segment from ``a`` to ``b`` (m) with a ``radius`` (m): what a capsule
+    and a cylinder share (checks, packing, motion)."""
 
     a: tuple
     b: tuple
     radius: float
+    kind = -1  # the kernels' kind, set by each solid
 
     def __post_init__(self):
-        object.__setattr__(self, "a", _tuple(_vec3(self.a, "Capsule.a")))
-        object.__setattr__(self, "b", _tuple(_vec3(self.b, "Capsule.b")))
-        object.__setattr__(self, "radius", _positive(self.radius, "Capsule.radius"))
+        name = type(self).__name__
+        object.__setattr__(self, "a", _tuple(_vec3(self.a, f"{name}.a")))
+        object.__setattr__(self, "b", _tuple(_vec3(self.b, f"{name}.b")))
+        object.__setattr__(self, "radius", _positive(self.radius, f"{name}.radius"))
         if np.allclose(self.a, self.b):
-            raise SceneError("Capsule: a and b must differ (use a Ball for a point)")
+            raise SceneError(f"{name}: a and b must differ" + (" (use a Ball for a point)" if self.kind == CAPSULE
+                                                                else ""))
 
     def pack(self):
-        return CAPSULE, np.asarray(self.a), np.asarray(self.b), self.radius, np.eye(3)
+        return self.kind, np.asarray(self.a), np.asarray(self.b), self.radius, np.eye(3)
+
+    def moved(self, rotation, translation):
+        return type(self)(rotation @ np.asarray(self.a) + translation, rotation @ np.asarray(self.b) + translation,
+                          self.radius)
+
+
+@dataclass(frozen=True)
+class Capsule(_Axial):
+    """The points within ``radius`` (m) of the segment from ``a`` to ``b`` (m)."""
+
+    kind = CAPSULE
 
     def distance(self, points):
         a, b = np.asarray(self.a), np.asarray(self.b)
@@ -164,28 +179,12 @@ class Capsule(Obstacle):
         t = np.clip((np.asarray(points) - a) @ ab / (ab @ ab), 0.0, 1.0)
         return np.linalg.norm(np.asarray(points) - (a + t[:, None] * ab), axis=1) - self.radius
 
-    def moved(self, rotation, translation):
-        return Capsule(rotation @ np.asarray(self.a) + translation, rotation @ np.asarray(self.b) + translation,
-                       self.radius)
-
 
 @dataclass(frozen=True)
-class Cylinder(Obstacle):
+class Cylinder(_Axial):
     """A rigid cylinder of ``radius`` (m) whose axis runs from ``a`` to ``b`` (m), flat ends."""
 
-    a: tuple
-    b: tuple
-    radius: float
-
-    def __post_init__(self):
-        object.__setattr__(self, "a", _tuple(_vec3(self.a, "Cylinder.a")))
-        object.__setattr__(self, "b", _tuple(_vec3(self.b, "Cylinder.b")))
-        object.__setattr__(self, "radius", _positive(self.radius, "Cylinder.radius"))
-        if np.allclose(self.a, self.b):
-            raise SceneError("Cylinder: a and b must differ")
-
-    def pack(self):
-        return CYLINDER, np.asarray(self.a), np.asarray(self.b), self.radius, np.eye(3)
+    kind = CYLINDER
 
     def distance(self, points):
         a, b = np.asarray(self.a), np.asarray(self.b)
@@ -197,10 +196,6 @@ class Cylinder(Obstacle):
         radial = np.linalg.norm(rel - along[:, None] * u, axis=1)
         q = np.stack([radial - self.radius, np.abs(along) - 0.5 * length], axis=1)
         return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
-
-    def moved(self, rotation, translation):
-        return Cylinder(rotation @ np.asarray(self.a) + translation, rotation @ np.asarray(self.b) + translation,
-                        self.radius)
 
 
 @dataclass(frozen=True, eq=False)
