@@ -11,6 +11,13 @@ body is ``(j_lin, j_ang)``: ``delta`` changes by ``j_lin . d_lin + j_ang . d_ang
 import warp as wp
 
 
+@wp.func
+def world_inverse_inertia(r: wp.quatd, inertia: wp.mat33d):
+    """``R I^-1 R^T``: the inverse inertia (1/(kg m^2)) in world axes of a body turned by ``r``."""
+    rot = wp.quat_to_matrix(r)
+    return rot * wp.inverse(inertia) * wp.transpose(rot)
+
+
 @wp.kernel
 def start(r: wp.array(dtype=wp.quatd), v: wp.array(dtype=wp.vec3d), w: wp.array(dtype=wp.vec3d),
           inertia: wp.array(dtype=wp.mat33d), gravity: wp.array(dtype=wp.vec3d), h: wp.float64,
@@ -20,11 +27,11 @@ def start(r: wp.array(dtype=wp.quatd), v: wp.array(dtype=wp.vec3d), w: wp.array(
     ``gravity`` m/s^2) and its world inverse inertia; the step so far is nothing."""
     b = wp.tid()
     rot = wp.quat_to_matrix(r[b])
-    i_w = rot * inertia[b] * wp.transpose(rot)
-    i_inv = rot * wp.inverse(inertia[b]) * wp.transpose(rot)
+    i_inv = world_inverse_inertia(r[b], inertia[b])
     inv_inertia_w[b] = i_inv
     target_lin[b] = h * v[b] + h * h * gravity[b]
-    target_ang[b] = h * w[b] - h * h * (i_inv * wp.cross(w[b], i_w * w[b]))
+    spin = rot * inertia[b] * wp.transpose(rot) * w[b]  # I_w w
+    target_ang[b] = h * w[b] - h * h * (i_inv * wp.cross(w[b], spin))
     dx_lin[b] = wp.vec3d()
     dx_ang[b] = wp.vec3d()
 
@@ -152,5 +159,4 @@ def inverse_inertia(r: wp.array(dtype=wp.quatd), inertia: wp.array(dtype=wp.mat3
                     inv_inertia_w: wp.array(dtype=wp.mat33d)):
     """The world inverse inertia at orientation ``r`` (each linearization's)."""
     b = wp.tid()
-    rot = wp.quat_to_matrix(r[b])
-    inv_inertia_w[b] = rot * wp.inverse(inertia[b]) * wp.transpose(rot)
+    inv_inertia_w[b] = world_inverse_inertia(r[b], inertia[b])

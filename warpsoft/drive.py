@@ -42,11 +42,15 @@ class DrivenNodes:
         self.a_dx = wp.zeros((1, model.num_nodes), dtype=wp.vec3d, device=d)  # A dx of the prescribed move
 
     def set_time(self, t: float) -> None:
-        """Where every frame carries its nodes at time ``t`` (s), uploaded in one copy."""
+        """Where every frame carries its nodes at time ``t`` (s), uploaded in one copy when it
+        changed."""
+        target = self.host.copy()
         for label, motion, sl in self.groups:
             rotation, translation = pose_of(motion, t, f"{label}: motion")
-            self.host[sl] = self.rest[sl] @ rotation.T + translation
-        self.target.assign(self.host)
+            target[sl] = self.rest[sl] @ rotation.T + translation
+        if not np.array_equal(target, self.host):  # a frame at rest uploads nothing
+            self.host = target
+            self.target.assign(self.host)
 
     def prescribe(self, q: wp.array, dx: wp.array, rhs: wp.array, operator, mask: wp.array) -> None:
         """The step starts with the driven nodes' move in ``dx`` (``(1, n)``, from ``q``) and its

@@ -101,12 +101,11 @@ class RigidBodies:
         self._launch(kernels.health, m.num_rigid, [state.body_p, state.body_r, flag])
 
     # ---- host ------------------------------------------------------------------------------
-    @staticmethod
-    def poses(state, world: int | None = None, model=None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    def poses(self, state, world: int | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """``name -> (rotation 3x3, centre of mass (3,) m)`` of the rigid bodies of ``state`` (of
         ``world`` only if given), read from the device."""
         p, r = state.body_p.numpy(), state.body_r.numpy()
-        return {rb.name: (quat_matrix(r[k]), p[k].copy()) for k, (w, rb) in enumerate(model.rigid)
+        return {name: (quat_matrix(r[k]), p[k].copy()) for k, (w, name) in enumerate(self.names)
                 if world is None or w == world}
 
 

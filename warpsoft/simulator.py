@@ -283,7 +283,7 @@ class Simulator:
         if given), read from the device; {} without rigid bodies."""
         if self.rigid is None:
             return {}
-        return self.rigid.poses(state or self.state, world, self.model)
+        return self.rigid.poses(state or self.state, world)
 
     def rigid_motions(self, world: int = 0) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """``name -> (rotation, translation)``: the rigid motion that carries each rigid body of

@@ -401,7 +401,9 @@ def contact_rows(
     phi = wp.float64(0.0)
     x, slip = wp.vec3d(), wp.vec3d()
     n, t1, t2 = wp.vec3d(), wp.vec3d(), wp.vec3d()
-    r_point, r_owner = wp.vec3d(), wp.vec3d()  # lever arms from the bodies' centres (m)
+    # lever arms from the bodies' centres (m): the point's, and the owner's to the point (normal
+    # row) and to the anchor (tangent rows)
+    r_point, r_normal, r_anchor = wp.vec3d(), wp.vec3d(), wp.vec3d()
     if c >= 0:
         o = points.obstacle[c]
         x = point_at(points, bodies, q, c)
@@ -415,7 +417,8 @@ def contact_rows(
         a = anchor[k]
         if ob >= 0:
             a = bodies.p[ob] + wp.quat_rotate(bodies.r[ob], anchor[k])
-            r_owner = a - bodies.p[ob]
+            r_normal = x - bodies.p[ob]
+            r_anchor = a - bodies.p[ob]
         phi, n = record_distance(obstacles, o, x)
         t1, t2 = tangents(n)
         slip = x - a
@@ -425,15 +428,15 @@ def contact_rows(
         e = entry_offset + slot_entry[k] + m
         d = n
         value = phi
-        r_o = x - wp.where(ob >= 0, bodies.p[wp.max(ob, 0)], x)  # the normal row's lever on the owner
+        r_o = r_normal
         if m == 1:
             d = t1
             value = wp.dot(t1, slip)
-            r_o = r_owner
+            r_o = r_anchor
         elif m == 2:
             d = t2
             value = wp.dot(t2, slip)
-            r_o = r_owner
+            r_o = r_anchor
         if c < 0:
             value = wp.float64(0.0)
         h_row[e] = row

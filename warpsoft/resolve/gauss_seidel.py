@@ -119,6 +119,7 @@ class GaussSeidel:
         self._uploaded = None
         # the worlds it resolves: not an inverse world (its QP decides its multipliers)
         self.direct = wp.array([0 if s.inverse else 1 for s in rows.model.scenes], dtype=wp.int32, device=d)
+        self._cpu = None  # the constant inputs of solve_host, on the host
 
     def set_values(self, values: np.ndarray) -> None:
         """The imposed value of every row ``(rows,)`` this step; one copy when they changed."""
@@ -131,27 +132,32 @@ class GaussSeidel:
         """The same sweeps on the host (Warp's CPU device), from the arrays of one read ``host``
         (``W``, ``delta_free``, ``delta`` at the step's start, ``lam``, ``force_rows``,
         ``friction``): ``host["lam"]`` is updated in place and the sweeps' ``result`` copied to the
-        device. On CUDA, one thread per world sweeping a few hundred contact rows runs at its
-        single thread's latency (measured 0.5 ms a sweep on an H200, 0.02 ms on the CPU VM)."""
+        device. On CUDA, one thread per world sweeping many contact rows runs at its single
+        thread's latency (docs/performance.md)."""
         rows, cpu = self.rows, "cpu"
-        f64 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.float64), dtype=wp.float64, device=cpu)  # noqa: E731
-        i32 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.int32), dtype=wp.int32, device=cpu)  # noqa: E731
-        lam, result = f64(host["lam"]), wp.zeros((rows.num_worlds, 3), dtype=wp.float64, device=cpu)
-        direct = [0 if s.inverse else 1 for s in rows.model.scenes]
-        wp.launch(kernels.projected_gauss_seidel, rows.num_worlds,
-                  inputs=[f64(host["W"]), f64(host["delta_free"]), f64(host["delta"]), f64(self.host),
-                          i32(rows.world_row_start), i32(host["force_rows"]), i32(direct), f64(host["friction"]),
-                          self.max_iterations, self.tolerance],
-                  outputs=[lam, result], device=cpu)
+        if self._cpu is None:  # what does not change from step to step, on the host once
+            self._cpu = {"row_start": wp.array(rows.world_row_start, dtype=wp.int32, device=cpu),
+                         "direct": wp.array(self.direct.numpy(), dtype=wp.int32, device=cpu),
+                         "result": wp.zeros((rows.num_worlds, 3), dtype=wp.float64, device=cpu)}
+        c = self._cpu
+        f64 = lambda a: wp.array(a, dtype=wp.float64, device=cpu)  # noqa: E731
+        lam = f64(host["lam"])
+        self._launch(f64(host["W"]), f64(host["delta_free"]), f64(host["delta"]), f64(self.host), c["row_start"],
+                     wp.array(host["force_rows"], dtype=wp.int32, device=cpu), c["direct"], f64(host["friction"]),
+                     lam, c["result"])
         host["lam"][:] = lam.numpy()
-        self.result.assign(result.numpy())
+        self.result.assign(c["result"].numpy())
+
+    def _launch(self, W, delta_free, delta_now, inputs, row_start, force_rows, direct, friction, lam, result) -> None:
+        """The sweeps, on the device the arrays live on."""
+        wp.launch(kernels.projected_gauss_seidel, self.rows.num_worlds,
+                  inputs=[W, delta_free, delta_now, inputs, row_start, force_rows, direct, friction,
+                          self.max_iterations, self.tolerance], outputs=[lam, result], device=lam.device)
 
     def solve(self, W: wp.array, delta_free: wp.array, delta_now: wp.array) -> None:
         """``lam`` of every direct-model world's force rows in use (actuators, contacts) from ``W``
         ``(rows, columns)``, ``delta_free`` and the rows' values at the start of the step
         ``delta_now`` (``(rows,)``); on the device. Inverse-model worlds' multipliers are left alone."""
         rows = self.rows
-        wp.launch(kernels.projected_gauss_seidel, rows.num_worlds,
-                  inputs=[W, delta_free, delta_now, self.inputs, rows.world_row_start_d, rows.world_force_rows,
-                          self.direct, self.friction, self.max_iterations, self.tolerance],
-                  outputs=[self.lam, self.result], device=rows.device)
+        self._launch(W, delta_free, delta_now, self.inputs, rows.world_row_start_d, rows.world_force_rows, self.direct,
+                     self.friction, self.lam, self.result)
