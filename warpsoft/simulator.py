@@ -147,8 +147,9 @@ class Simulator:
                 raise SceneError(f"Simulator: qp='device' takes at most {NMAX} actuators per world, got "
                                  f"{int(max(self.rows.world_actuators))}; use qp='piqp'")
         # On CUDA, direct-model worlds with contacts sweep their Gauss-Seidel on the host, between
-        # two graphs (as the host QP): hundreds of contact rows swept by one device thread cost
-        # 25 times what the CPU takes (the Grasper: 74 ms a step on an H200, docs/performance.md)
+        # two graphs (as the host QP): one device thread sweeping a hundred contact rows takes 10
+        # times what the host takes (the Grasper on an H200: 0.28 against 0.026 ms a sweep,
+        # tools/gs_sweep.py; its step 74.9 -> 16-20 ms, docs/performance.md)
         self.host_gauss_seidel = d.is_cuda and self.rows is not None and any(
             not s.inverse and self.rows.world_contacts[w] for w, s in enumerate(m.scenes))
         self.last_effector_error: dict[int, float] = {}  # per inverse world, m (is its target getting closer?)
