@@ -59,8 +59,10 @@ def test_device_gauss_seidel_equals_numpy(seed):
                       wp.array(starts[:-1], dtype=wp.int32, device=d), wp.array(np.array(counts, np.int32),
                                                                                 dtype=wp.int32, device=d),
                       wp.ones(len(worlds), dtype=wp.int32, device=d), wp.zeros(len(lam0), dtype=wp.float64, device=d),
-                      1000, 1e-12],
-              outputs=[lam, result], device=d)
+                      wp.array(np.array(counts, np.int32), dtype=wp.int32, device=d),
+                      wp.zeros(len(worlds), dtype=wp.int32, device=d), 1000, 1e-12],  # (no bilateral rows)
+              outputs=[lam, result, wp.zeros((len(worlds), 1, 1), dtype=wp.float64, device=d),
+                       wp.zeros((len(worlds), 1), dtype=wp.float64, device=d)], device=d)
     lam, result = lam.numpy(), result.numpy()
     for w, ref in enumerate(expected):
         s, na = starts[w], counts[w]

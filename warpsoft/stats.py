@@ -29,7 +29,8 @@ class WorldStats:
     each contact's) and its deepest penetration (m); in the direct model, how far each
     displacement-driven actuator is from its command this step (cable m, cavity m^3); with rigid
     bodies, each one's centre of mass (m) and orientation (unit quaternion x, y, z, w) after the
-    step, by name."""
+    step, by name; with attachments, the force each puts on its soft nodes (N, their sum; its
+    rigid body takes the opposite), by name."""
 
     cg_iterations: int = 0
     resolve_iterations: int = 0
@@ -52,6 +53,7 @@ class WorldStats:
     effectors: dict[str, np.ndarray] = field(default_factory=dict)
     targets: dict[str, np.ndarray] = field(default_factory=dict)
     rigid_bodies: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    attachments: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def _of_the_world(name: str):
@@ -116,3 +118,4 @@ class StepStats:
     penetration = _of_the_world("penetration")
     actuator_residual = _of_the_world("actuator_residual")
     rigid_bodies = _of_the_world("rigid_bodies")
+    attachments = _of_the_world("attachments")

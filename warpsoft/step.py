@@ -430,7 +430,9 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
         ws.targets = rows.targets(targets, w)
         ws.effector_error = {e.name: float(np.linalg.norm((ws.effectors[e.name] - ws.targets[e.name])[e.axis_ids]))
                              for e in rows.effectors[w] if e.target is not None}
-        forces = rows.world_actuators[w] + rows.world_contacts[w] > 0
+        forces = rows.world_actuators[w] + rows.world_bilateral[w] + rows.world_contacts[w] > 0
+        if rows.world_bilateral[w]:
+            ws.attachments = rows.kind("attachment").forces(lam, w)
         if rows.world_contacts[w]:
             watch.contacts(sim, stats, w, host)
         if forces:

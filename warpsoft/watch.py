@@ -70,7 +70,7 @@ def contacts(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarra
     rows, ws = sim.rows, stats.worlds[w]
     rps = rows.rows_per_contact(w)
     block = host["lam"][rows.contact_rows(w)]
-    used = (int(host["force_rows"][w]) - int(rows.world_actuators[w])) // rps
+    used = rows.contacts_in_use(w, host["force_rows"][w])
     lam = block[:used * rps].reshape(used, rps)
     gaps = host["delta"][rows.contact_rows(w)][:used * rps:rps]
     ws.contacts = int(np.count_nonzero(lam[:, 0] > 0.0))

@@ -7,7 +7,8 @@ aim at ``clip(value, dmin, dmax)``, force-driven rows impose ``lambda = value`` 
 leaves ``[dmin, dmax]``; ``lambda`` stays in ``[lo, hi]``. The bounds on ``delta`` are first
 narrowed to ``delta_now +- max_step`` (the change allowed in one step). On actuator rows, the
 same sweep order, update and stopping test as ``warpsoft.resolve.gauss_seidel.projected_gauss_seidel``
-(numpy); a contact's two friction rows are one block (:func:`friction_pair`).
+(numpy); a contact's two friction rows are one block (:func:`friction_pair`); a world's bilateral
+rows (attachments, after its actuators) are one block solved exactly (:func:`bilateral_block`).
 """
 
 import warp as wp
@@ -90,6 +91,52 @@ def friction_pair(W: wp.array2d(dtype=wp.float64), delta_free: wp.array(dtype=wp
     return wp.max(wp.abs(new1 - old1) * wp.max(a, wp.float64(0.0)), wp.abs(new2 - old2) * wp.max(c, wp.float64(0.0)))
 
 
+@wp.func
+def factor_block(W: wp.array2d(dtype=wp.float64), s: int, b0: int, nb: int, L: wp.array3d(dtype=wp.float64),
+                 w: int):
+    """``L[w] L[w]^T = W_bb``, the Cholesky factor of the world's bilateral block (rows and
+    columns ``b0 .. b0 + nb`` of the world's force rows; symmetric positive definite: distinct
+    nodes, each with its own compliance). A pivot that is not positive (a row that moves nothing)
+    is floored at 1e-12 of its diagonal, which leaves that row's force near 0."""
+    for i in range(nb):
+        for j in range(i + 1):
+            v = W[s + b0 + i, b0 + j]
+            for k in range(j):
+                v -= L[w, i, k] * L[w, j, k]
+            if i == j:
+                floor = wp.float64(1e-12) * wp.abs(W[s + b0 + i, b0 + i]) + wp.float64(1e-300)
+                L[w, i, i] = wp.sqrt(wp.max(v, floor))
+            else:
+                L[w, i, j] = v / L[w, j, j]
+
+
+@wp.func
+def bilateral_block(W: wp.array2d(dtype=wp.float64), delta_free: wp.array(dtype=wp.float64),
+                    lam: wp.array(dtype=wp.float64), s: int, b0: int, nb: int, na: int,
+                    L: wp.array3d(dtype=wp.float64), y: wp.array2d(dtype=wp.float64), w: int) -> wp.float64:
+    """Update the bilateral rows ``b0 .. b0 + nb`` together: the forces that bring all their
+    ``delta`` to 0 given the other rows' (``W_bb dlambda = -delta``, by the factor ``L``). Held
+    rows couple strongly through the body that holds them (a rigid body turning moves them all),
+    which one row at a time resolves in thousands of sweeps. Returns the largest change of a
+    row's delta it made."""
+    for i in range(nb):  # forward: L z = -delta
+        v = -row_delta(W, delta_free, lam, s, b0 + i, na)
+        for k in range(i):
+            v -= L[w, i, k] * y[w, k]
+        y[w, i] = v / L[w, i, i]
+    change = wp.float64(0.0)
+    for ii in range(nb):  # backward: L^T dlambda = z
+        i = nb - 1 - ii
+        v = y[w, i]
+        for k in range(i + 1, nb):
+            v -= L[w, k, i] * y[w, k]
+        y[w, i] = v / L[w, i, i]
+    for i in range(nb):
+        lam[s + b0 + i] += y[w, i]
+        change = wp.max(change, wp.abs(y[w, i]) * W[s + b0 + i, b0 + i])
+    return change
+
+
 @wp.kernel
 def projected_gauss_seidel(
     W: wp.array2d(dtype=wp.float64),
@@ -100,19 +147,29 @@ def projected_gauss_seidel(
     world_force_rows: wp.array(dtype=wp.int32),
     direct: wp.array(dtype=wp.int32),
     friction: wp.array(dtype=wp.float64),
+    world_actuators: wp.array(dtype=wp.int32),
+    world_bilateral: wp.array(dtype=wp.int32),
     max_iterations: int,
     tolerance: wp.float64,
     lam: wp.array(dtype=wp.float64),
     result: wp.array2d(dtype=wp.float64),
+    factor: wp.array3d(dtype=wp.float64),
+    work: wp.array2d(dtype=wp.float64),
 ):
     """``lam`` (per row; holds the warm start) of the force rows in use of every world whose
     ``direct`` flag is 1 (actuators, then contacts: a contact's normal row is force-driven at 0
     within ``lambda >= 0`` and ``delta >= 0``, which is Signorini's condition; its two tangent
     rows, when it has friction ``mu = friction[row]``, are updated as one block by
-    :func:`friction_pair`: no slip inside Coulomb's disc, sliding against the slip on its rim)."""
+    :func:`friction_pair`: no slip inside Coulomb's disc, sliding against the slip on its rim); its
+    bilateral rows, as one block by :func:`bilateral_block` (``factor`` ``(worlds, b, b)`` and
+    ``work`` ``(worlds, b)`` its scratch, ``b`` the most bilateral rows of a world)."""
     w = wp.tid()
     s = world_row_start[w]
     na = world_force_rows[w] * direct[w]
+    b0 = world_actuators[w]
+    nb = world_bilateral[w] * direct[w]
+    if nb > 0:
+        factor_block(W, s, b0, nb, factor, w)
     scale = wp.float64(1e-300)
     for i in range(na):
         r = s + i
@@ -127,6 +184,10 @@ def projected_gauss_seidel(
         i = wp.int32(0)
         while i < na:
             r = s + i
+            if i == b0 and nb > 0:  # the attachments' rows, as one block
+                change = wp.max(change, bilateral_block(W, delta_free, lam, s, b0, nb, na, factor, work, w))
+                i += nb
+                continue
             if int(inputs[NORMAL, r]) == 1:  # a contact's two tangent rows, as one block
                 change = wp.max(change, friction_pair(W, delta_free, lam, s, i, na, friction[r]))
                 i += 2

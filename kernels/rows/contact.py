@@ -308,7 +308,7 @@ def assign_slots(
     slot_start: wp.array(dtype=wp.int32),
     contact_row: wp.array(dtype=wp.int32),
     rows_per_slot: wp.array(dtype=wp.int32),
-    world_actuators: wp.array(dtype=wp.int32),
+    world_held: wp.array(dtype=wp.int32),
     slot_candidate: wp.array(dtype=wp.int32),
     anchor: wp.array(dtype=wp.vec3d),
     found: wp.array(dtype=wp.int32),
@@ -319,8 +319,9 @@ def assign_slots(
 ):
     """One thread per world: its near candidates take its slots in candidate order; ``found[w]``
     counts them all (more than the capacity: an overflow), ``force_rows[w]`` is the world's
-    actuator rows plus its contacts' rows (1 per contact, 3 with friction: normal, then two
-    tangents, whose ``friction`` is the record's coefficient). A slot keeps the point's position
+    rows always in use (actuators, attachments: ``world_held``) plus its contacts' rows (1 per
+    contact, 3 with friction: normal, then two tangents, whose ``friction`` is the record's
+    coefficient). A slot keeps the point's position
     now as the anchor its tangential slip is measured from: carried over the step by a moving
     obstacle, or kept in the owner's frame for a rigid body's solid. A contact's multipliers
     start from what its candidate carried at the last step (0 for a new contact)."""
@@ -358,7 +359,7 @@ def assign_slots(
             lam[contact_row[w] + j * rps + m] = wp.float64(0.0)
             friction[contact_row[w] + j * rps + m] = wp.float64(0.0)
     found[w] = k
-    force_rows[w] = world_actuators[w] + wp.min(k, cap) * rps
+    force_rows[w] = world_held[w] + wp.min(k, cap) * rps
 
 
 @wp.kernel

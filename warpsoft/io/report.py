@@ -95,6 +95,11 @@ class RunReport:
                                              for k, key in enumerate(("position", "orientation"))}
                                    for _, rb in self.sim.model.rigid}
             out["rigid_bodies_units"] = "centre of mass m; orientation a unit quaternion (x, y, z, w)"
+        if self.sim.model.scene.attachments:
+            out["attachments"] = {a.name: {"rigid_body": a.rigid.name, "body": a.body.name, "nodes": len(a.nodes),
+                                           "force": [np.asarray(s.attachments[a.name]).tolist() for s in self.steps]}
+                                  for a in self.sim.model.scene.attachments}
+            out["attachments_units"] = "force N: what the rigid body puts on the held nodes (their sum)"
         if self.sim.model.scene.inverse:
             out["inverse"] = {"epsilon": self.sim.model.scene.inverse_epsilon,
                               "qp_status": [s.qp_status for s in self.steps],

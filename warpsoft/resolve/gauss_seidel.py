@@ -101,6 +101,9 @@ class GaussSeidel:
                 r = rows.world_row_start[w] + k
                 host[:, r] = [a.mode == "force", 0.0, a.min_force, a.max_force, a.min_displacement,
                               a.max_displacement, a.max_step, 0.0]
+            # an attachment's rows: displacement-driven at 0, the force free (bilateral)
+            held = rows.bilateral_rows(w)
+            host[:, held] = np.array([[0.0, 0.0, -np.inf, np.inf, -np.inf, np.inf, np.inf, 0.0]]).T
             # a contact's rows: the normal force is 0 unless the gap would close, lambda >= 0 and
             # gap >= 0 (Signorini); with friction, each tangent holds the slip at 0, its force
             # bounded by Coulomb (the kernel reads mu lambda_n)
@@ -120,6 +123,11 @@ class GaussSeidel:
         # the worlds it resolves: not an inverse world (its QP decides its multipliers)
         self.direct = wp.array([0 if s.inverse else 1 for s in rows.model.scenes], dtype=wp.int32, device=d)
         self._cpu = None  # the constant inputs of solve_host, on the host
+        # the bilateral block's Cholesky factor and solve vector, per world (1 x 1 without one)
+        nb = max(int(rows.world_bilateral.max(initial=0)), 1)
+        self.factor = wp.zeros((rows.num_worlds, nb, nb), dtype=wp.float64, device=d)
+        self.work = wp.zeros((rows.num_worlds, nb), dtype=wp.float64, device=d)
+        self.counts = (rows.world_actuators_d, wp.array(rows.world_bilateral, dtype=wp.int32, device=d))
 
     def set_values(self, values: np.ndarray) -> None:
         """The imposed value of every row ``(rows,)`` this step; one copy when they changed."""
@@ -138,21 +146,25 @@ class GaussSeidel:
         if self._cpu is None:  # what does not change from step to step, on the host once
             self._cpu = {"row_start": wp.array(rows.world_row_start, dtype=wp.int32, device=cpu),
                          "direct": wp.array(self.direct.numpy(), dtype=wp.int32, device=cpu),
-                         "result": wp.zeros((rows.num_worlds, 3), dtype=wp.float64, device=cpu)}
+                         "result": wp.zeros((rows.num_worlds, 3), dtype=wp.float64, device=cpu),
+                         "counts": tuple(wp.array(c.numpy(), dtype=wp.int32, device=cpu) for c in self.counts),
+                         "factor": wp.zeros(self.factor.shape, dtype=wp.float64, device=cpu),
+                         "work": wp.zeros(self.work.shape, dtype=wp.float64, device=cpu)}
         c = self._cpu
         f64 = lambda a: wp.array(a, dtype=wp.float64, device=cpu)  # noqa: E731
         lam = f64(host["lam"])
         self._launch(f64(host["W"]), f64(host["delta_free"]), f64(host["delta"]), f64(self.host), c["row_start"],
                      wp.array(host["force_rows"], dtype=wp.int32, device=cpu), c["direct"], f64(host["friction"]),
-                     lam, c["result"])
+                     lam, c["result"], c["counts"], c["factor"], c["work"])
         host["lam"][:] = lam.numpy()
         self.result.assign(c["result"].numpy())
 
-    def _launch(self, W, delta_free, delta_now, inputs, row_start, force_rows, direct, friction, lam, result) -> None:
+    def _launch(self, W, delta_free, delta_now, inputs, row_start, force_rows, direct, friction, lam, result,
+                counts, factor, work) -> None:
         """The sweeps, on the device the arrays live on."""
         wp.launch(kernels.projected_gauss_seidel, self.rows.num_worlds,
-                  inputs=[W, delta_free, delta_now, inputs, row_start, force_rows, direct, friction,
-                          self.max_iterations, self.tolerance], outputs=[lam, result], device=lam.device)
+                  inputs=[W, delta_free, delta_now, inputs, row_start, force_rows, direct, friction, *counts,
+                          self.max_iterations, self.tolerance], outputs=[lam, result, factor, work], device=lam.device)
 
     def solve(self, W: wp.array, delta_free: wp.array, delta_now: wp.array) -> None:
         """``lam`` of every direct-model world's force rows in use (actuators, contacts) from ``W``
@@ -160,4 +172,4 @@ class GaussSeidel:
         ``delta_now`` (``(rows,)``); on the device. Inverse-model worlds' multipliers are left alone."""
         rows = self.rows
         self._launch(W, delta_free, delta_now, self.inputs, rows.world_row_start_d, rows.world_force_rows, self.direct,
-                     self.friction, self.lam, self.result)
+                     self.friction, self.lam, self.result, self.counts, self.factor, self.work)

@@ -3,8 +3,9 @@
 A row has a measure ``delta(q)``, a direction ``H = d delta / dq`` stored as sparse entries
 ``(h_row, h_node, h_coef)`` and a multiplier ``lambda``. Rows are laid out world by world; in a
 world the force rows come first: the actuator rows (in :data:`ROW_KINDS` order: cables, then
-cavities), then its block of contact rows (a fixed capacity, of which the first
-``world_force_rows - world_actuators`` are in use after a detection); then the effector rows.
+cavities), then the bilateral rows (attachments: always in use), then its block of contact rows
+(a fixed capacity, of which the first ``world_force_rows - world_actuators - world_bilateral``
+are in use after a detection); then the effector rows.
 Force row ``j`` of a world owns compliance column ``j`` (the column count is the largest force
 block of a world): a column spans every world's nodes and holds, on world ``w``'s nodes, the
 response to world ``w``'s ``j``-th force row. So ``W = H X`` needs no world bookkeeping: a row's
@@ -20,15 +21,16 @@ from warpsoft.kernels.rows import common as kernels
 from warpsoft.kernels.rows import mapping
 
 from ..mapping import locate
+from .attachment import AttachmentRows
 from .cable import CableRows
 from .cavity import CavityRows
 from .contact import ContactRows
 from .effector import EffectorRows
 from .kind import Placed, RowKind
 
-ROW_KINDS: tuple[type[RowKind], ...] = (CableRows, CavityRows, ContactRows, EffectorRows)
-"""Row kinds in table order (actuators, then other kinds with columns, then the rest, within a
-world); a new kind is one line here."""
+ROW_KINDS: tuple[type[RowKind], ...] = (CableRows, CavityRows, AttachmentRows, ContactRows, EffectorRows)
+"""Row kinds in table order (actuators, then bilateral kinds, then other kinds with columns,
+then the rest, within a world); a new kind is one line here."""
 
 
 class Rows:
@@ -40,7 +42,8 @@ class Rows:
     ``H`` on rigid bodies (translation m/m, rotation m/rad; body -1: inert); ``W``
     ``(rows, columns)`` compliance of each row against its world's actuator
     columns (m/N, m^3/Pa). Host: ``world_row_start`` ``(worlds + 1,)``, ``world_actuators``
-    ``(worlds,)``, ``world_contacts`` ``(worlds,)`` (contact capacity), ``num_columns`` (largest
+    ``(worlds,)``, ``world_bilateral`` ``(worlds,)`` (attachment rows), ``world_contacts``
+    ``(worlds,)`` (contact capacity), ``num_columns`` (largest
     force block of a world), ``kinds`` (one object per row kind present), ``actuators[w]`` and
     ``effectors[w]`` (the scene items, in row order). Device: ``world_force_rows`` ``(worlds,)``,
     the force rows in use (actuators and the contacts of the last detection).
@@ -50,21 +53,24 @@ class Rows:
         d = self.device = model.device
         self.model = model
         self.num_worlds = model.num_worlds
-        order = ([k for k in ROW_KINDS if k.actuator] + [k for k in ROW_KINDS if k.columns and not k.actuator]
+        order = ([k for k in ROW_KINDS if k.actuator] + [k for k in ROW_KINDS if k.bilateral]
+                 + [k for k in ROW_KINDS if k.columns and not (k.actuator or k.bilateral)]
                  + [k for k in ROW_KINDS if not k.columns])
         placed: dict[type[RowKind], list[Placed]] = {k: [] for k in order}
-        row, starts, counts, contacts = 0, [0], [], []
+        row, starts, counts, bilateral, contacts = 0, [0], [], [], []
         self.actuators, self.effectors = [], []
         for w, scene in enumerate(model.scenes):
-            na = nc = 0
+            na = nb = nc = 0
             for kind in order:
                 for item in kind.items(scene):
                     n = kind.row_count(item)
                     placed[kind].append(Placed(w, item, row, n))
                     row += n
                     na += n if kind.actuator else 0
-                    nc += n if kind.columns and not kind.actuator else 0
+                    nb += n if kind.bilateral else 0
+                    nc += n if kind.columns and not (kind.actuator or kind.bilateral) else 0
             counts.append(na)
+            bilateral.append(nb)
             contacts.append(nc)
             starts.append(row)
             self.actuators.append([p.item for k in order if k.actuator for p in placed[k] if p.world == w])
@@ -72,11 +78,14 @@ class Rows:
         self.num_rows = row
         self.world_row_start = np.array(starts, dtype=np.int32)
         self.world_actuators = np.array(counts, dtype=np.int32)
+        self.world_bilateral = np.array(bilateral, dtype=np.int32)
         self.world_contacts = np.array(contacts, dtype=np.int32)
-        self.num_columns = int((self.world_actuators + self.world_contacts).max(initial=0))
+        held = self.world_actuators + self.world_bilateral  # the force rows always in use
+        self.num_columns = int((held + self.world_contacts).max(initial=0))
         self.world_row_start_d = wp.array(self.world_row_start, dtype=wp.int32, device=d)
         self.world_actuators_d = wp.array(self.world_actuators, dtype=wp.int32, device=d)
-        self.world_force_rows = wp.array(self.world_actuators, dtype=wp.int32, device=d)  # no contact yet
+        self.world_held_d = wp.array(held, dtype=wp.int32, device=d)
+        self.world_force_rows = wp.array(held, dtype=wp.int32, device=d)  # no contact yet
 
         # mapped points, kind by kind (a kind's points are contiguous), each located in its elements
         nodes, weights, point = [], [], 0
@@ -126,7 +135,7 @@ class Rows:
         self.h_coef = wp.zeros(entry, dtype=wp.vec3d, device=d)
         col = np.full(self.num_rows, -1, dtype=np.int32)
         for w in range(self.num_worlds):
-            nf = counts[w] + contacts[w]
+            nf = counts[w] + bilateral[w] + contacts[w]
             col[starts[w]:starts[w] + nf] = np.arange(nf)
         self.column_of_row = wp.array(col, dtype=wp.int32, device=d)
         self.W = wp.zeros((self.num_rows, max(self.num_columns, 1)), dtype=wp.float64, device=d)
@@ -141,10 +150,20 @@ class Rows:
         s = int(self.world_row_start[world])
         return slice(s, s + int(self.world_actuators[world]))
 
+    def bilateral_rows(self, world: int) -> slice:
+        """The world's attachment rows (after its actuators)."""
+        s = self.actuator_rows(world).stop
+        return slice(s, s + int(self.world_bilateral[world]))
+
     def contact_rows(self, world: int) -> slice:
         """The world's block of contact rows (its capacity; the first ones are in use)."""
-        s = self.actuator_rows(world).stop
+        s = self.bilateral_rows(world).stop
         return slice(s, s + int(self.world_contacts[world]))
+
+    def contacts_in_use(self, world: int, force_rows: int) -> int:
+        """The world's contacts of the last detection, from its force rows in use."""
+        held = int(self.world_actuators[world] + self.world_bilateral[world])
+        return (int(force_rows) - held) // self.rows_per_contact(world)
 
     def rows_per_contact(self, world: int) -> int:
         """Rows per contact slot of the world: 3 with friction (normal, two tangents), else 1."""

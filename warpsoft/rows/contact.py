@@ -76,6 +76,11 @@ class ContactRows(RowKind):
         rows_per_slot, slot_row, slot_rows = np.ones(worlds, np.int32), [], []
         by_world = {p.world: p for p in placed}
         rigid_index = {(w, id(rb)): k for k, (w, rb) in enumerate(model.rigid)}  # (a scene may serve two worlds)
+        held = {}  # a rigid body's attached soft nodes (global ids): they never touch its solid
+        for w, scene in enumerate(model.scenes):
+            for att in scene.attachments:
+                ids = att.nodes + model.body_info(att.body.name, w).node_start
+                held.setdefault(rigid_index[(w, id(att.rigid))], []).extend(ids.tolist())
 
         def add(entry, pack, owner, reach, mu, nodes=None, body=None):  # one record and its candidates
             k, pa, pb, r, R = pack
@@ -122,7 +127,9 @@ class ContactRows(RowKind):
                     rb = model.rigid[k][1]
                     pack = rb.shape.pack()
                     for nodes, reach in softs:
-                        add(rb, pack, k, rb.contact_distance or reach, rb.mu, nodes=nodes)
+                        free = np.setdiff1d(nodes, held.get(k, []))
+                        if len(free):
+                            add(rb, pack, k, rb.contact_distance or reach, rb.mu, nodes=free)
                     for j, reach in rigids:
                         if j != k:
                             add(rb, pack, k, rb.contact_distance or reach, rb.mu, body=j)
@@ -275,7 +282,7 @@ class ContactRows(RowKind):
         wp.launch(kernels.assign_slots, self.model.num_worlds,
                   inputs=[q, self.world_cand_start, self.near, self.points, bodies, self.owner, self.mu,
                           self.step_rot, self.step_shift, self.capacity, self.slot_start, self.contact_row,
-                          self.rows_per_slot, table.world_actuators_d],
+                          self.rows_per_slot, table.world_held_d],
                   outputs=[self.slot_candidate, self.anchor, self.found, table.world_force_rows, lam, friction,
                            self.cand_lam], device=d)
 

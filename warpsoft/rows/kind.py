@@ -34,11 +34,13 @@ class Placed:
 class RowKind:
     """Base of a row kind. Class attributes: ``name``; ``columns`` (True: the rows carry a force
     solved for, so each gets a compliance column); ``actuator`` (True: the rows are the scene's
-    actuators, with inputs; an actuator kind has columns); ``scene_attr`` (the Scene's list of
-    items)."""
+    actuators, with inputs; an actuator kind has columns); ``bilateral`` (True: rows with columns
+    held at ``delta = 0`` by a free force, always in use: attachments); ``scene_attr`` (the
+    Scene's list of items)."""
 
     name = "row"
     actuator = False
+    bilateral = False
     columns = False
     scene_attr = ""
 

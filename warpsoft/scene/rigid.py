@@ -45,6 +45,18 @@ class RigidBody:
         return float(np.linalg.norm(np.ptp(self.points, axis=0)))
 
 
+@dataclass
+class Attachment:
+    """Nodes of a soft body held by a rigid body: ``nodes`` (ids in ``body``'s mesh) keep, in the
+    rigid body's frame, the place they had at ``t = 0`` (three bilateral rows each)."""
+
+    name: str
+    body: object
+    rigid: RigidBody
+    region: object
+    nodes: np.ndarray
+
+
 def mass_properties(shape: ob.Obstacle, density: float) -> tuple[float, np.ndarray, np.ndarray]:
     """Mass (kg), centre of mass (m) and inertia about it (kg m^2, world axes) of a uniform solid."""
     if isinstance(shape, ob.Ball):

@@ -20,7 +20,7 @@ from .material import Material
 from .mesh import TetMesh
 from .obstacles import Obstacle, ObstacleEntry, pose_of
 from .regions import Region, as_region
-from .rigid import RigidBody, make_rigid
+from .rigid import Attachment, RigidBody, make_rigid
 
 Vec3 = tuple[float, float, float]
 
@@ -143,6 +143,7 @@ class Scene:
         self.effectors: list[Effector] = []
         self.obstacles: list[ObstacleEntry] = []
         self.rigid_bodies: list[RigidBody] = []
+        self.attachments: list[Attachment] = []
         self.contact_capacity = 64  # contact rows per world (set_contacts)
         self.rayleigh_mass = 0.0
         self.rayleigh_stiffness = 0.0
@@ -346,6 +347,32 @@ class Scene:
         self.rigid_bodies.append(body)
         return body
 
+    def attach(self, body: Body, region: Region, rigid: RigidBody, name: str | None = None) -> Attachment:
+        """Hold the nodes of ``body`` in ``region`` by the rigid body ``rigid``: each keeps, in the
+        rigid body's frame, the place it has at ``t = 0`` (a payload glued to an arm, a soft
+        finger on a free hand). Each node is three bilateral constraint rows whose forces (N)
+        act on the node and, opposite, on the rigid body: the two move as one there, and their
+        contacts with each other are left out."""
+        self._own(body, "attach")
+        name = str(name or f"attachment{len(self.attachments)}")
+        if not any(r is rigid for r in self.rigid_bodies):
+            raise SceneError(f"attachment '{name}': rigid must be a rigid body of this scene (Scene.add_rigid), "
+                             f"got {rigid!r:.60}")
+        if any(a.name == name for a in self.attachments):
+            raise SceneError(f"scene '{self.name}': an attachment named '{name}' exists already")
+        region = as_region(region, f"attachment '{name}': region")
+        nodes = np.flatnonzero(region(body.mesh.nodes))
+        if not len(nodes):
+            raise SceneError(f"attachment '{name}': region {region!r} selects no node of body '{body.name}'")
+        for other in self.attachments:
+            both = np.intersect1d(nodes, other.nodes) if other.body is body else []
+            if len(both):
+                raise SceneError(f"attachment '{name}': node {int(both[0])} of body '{body.name}' is held by "
+                                 f"attachment '{other.name}' already; a node is held by one rigid body")
+        a = Attachment(name, body, rigid, region, nodes)
+        self.attachments.append(a)
+        return a
+
     def set_contacts(self, capacity: int) -> None:
         """At most ``capacity`` contacts at once in this scene (default 64); more are reported
         as an overflow (the nearest are not chosen: raise the capacity)."""
@@ -381,6 +408,15 @@ class Scene:
             raise SceneError(f"scene '{self.name}': the inverse model takes frictionless contacts only (its QPCC has "
                              f"no friction rows), but obstacle or rigid body '{rough[0]}' has mu > 0; set "
                              "mu=0.0 or use the direct model")
+        if self.inverse and self.attachments:
+            raise SceneError(f"scene '{self.name}': the inverse model does not take attachments (its QP has no "
+                             f"bilateral rows), but attachment '{self.attachments[0].name}' is declared; use the "
+                             "direct model")
+        for a in self.attachments:
+            held = [f for f in self.fixtures if f.body is a.body and np.any(f.region(a.body.mesh.nodes[a.nodes]))]
+            if held:
+                raise SceneError(f"attachment '{a.name}': nodes of body '{a.body.name}' are also fixed (region "
+                                 f"{held[0].region!r}); a node is held by a fixed region or a rigid body, not both")
         if self.inverse:
             if not self.actuators:
                 raise SceneError(f"scene '{self.name}': the inverse model needs at least one actuator")

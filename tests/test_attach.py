@@ -1,0 +1,92 @@
+"""Attachments: soft nodes held by a rigid body (bilateral rows), against a hanging weight's
+uniaxial stretch and the conservation of momentum of a free soft arm and its payload."""
+
+import numpy as np
+import pytest
+
+import warpsoft as ws
+from warpsoft.errors import SceneError
+
+G = 9.81
+E, L, SIDE = 1e5, 0.05, 0.01  # the bar (Pa, m, m)
+
+
+def bar_with_weight(mass=0.05, gravity=(0.0, 0.0, -G), fixed=True, nu=0.0, density=100.0, **rigid):
+    """A square bar standing on z in [0, L], a rigid cube glued under its bottom face."""
+    scene = ws.Scene("hang", gravity=gravity, dt=0.01)
+    bar = scene.add_body("bar", ws.mesh_shape(ws.shapes.Box((-SIDE / 2, -SIDE / 2, 0), (SIDE, SIDE, L)), 0.005),
+                         ws.Material(E, nu, density))
+    if fixed:
+        scene.fix(bar, ws.InBox((-1, -1, L - 1e-4), (1, 1, 1)))
+    weight = scene.add_rigid("weight", ws.obstacles.Box((0, 0, -SIDE / 2), (SIDE,) * 3), mass=mass, **rigid)
+    glue = scene.attach(bar, ws.InBox((-1, -1, -1), (1, 1, 1e-4)), weight, name="glue")
+    return scene, bar, weight, glue
+
+
+def test_a_hanging_weight_stretches_the_bar_as_a_uniaxial_rod():
+    """Hung from its top, the bar stretches by ``m g L / (E A)`` under the weight (plus
+    ``rho g L^2 / (2 E)`` under its own); at rest the glue carries the weight, and the weight
+    hangs straight below. With nu = 0 the linear tetrahedra
+    reproduce the uniform stress exactly."""
+    scene, *_ = bar_with_weight()
+    sim = ws.Simulator(scene, device="cpu", solver="direct")
+    for _ in range(120):  # implicit Euler damps the bounce (0.85 a step at omega h = 0.63)
+        stats = sim.step()
+    rotation, p = sim.rigid_poses()["weight"]
+    m, rho = 0.05, 100.0
+    stretch = m * G * L / (E * SIDE**2) + rho * G * L**2 / (2 * E)
+    assert p[2] == pytest.approx(-SIDE / 2 - stretch, rel=1e-6)
+    # straight below, to the unstructured mesh's asymmetry (it tilts the weight by microradians)
+    assert np.abs(p[:2]).max() < 1e-4 * stretch and np.allclose(rotation, np.eye(3), atol=1e-5)
+    force = stats.attachments["glue"]  # what the weight puts on the bar's bottom nodes
+    assert force[2] == pytest.approx(-m * G, rel=1e-9) and np.abs(force[:2]).max() < 1e-6 * m * G
+    assert stats.worlds[0].resolve_iterations <= 5  # the attachment's rows are solved as one block
+    assert sim.rows.kind("contact").found.numpy()[0] == 0  # the glued face never touches its own weight
+
+
+def test_a_free_arm_and_its_payload_keep_their_momentum():
+    """No gravity, nothing fixed: a soft bar and the spinning cube glued to it exchange only
+    internal forces, so the total linear momentum stays what the cube started with (to
+    round-off), while the glued nodes follow the cube (to the step's linearization of its turn)."""
+    scene, bar, weight, glue = bar_with_weight(mass=0.01, gravity=(0, 0, 0), fixed=False, nu=0.45, density=1000.0,
+                                               velocity=(0.2, 0, 0), angular_velocity=(0, 3.0, 1.0))
+    sim = ws.Simulator(scene, device="cpu", solver="direct")
+    mass = sim.model.mass_np
+    local = sim.model.rest_np[glue.nodes] - weight.center
+
+    def momentum():
+        return (mass[:, None] * sim.state.v.numpy()).sum(axis=0) + weight.mass * sim.state.body_v.numpy()[0]
+
+    p0 = momentum()
+    assert p0 == pytest.approx([0.002, 0, 0])
+    gaps = []
+    for _ in range(50):
+        sim.step()
+        rotation, p = sim.rigid_poses()["weight"]
+        gaps.append(np.abs(sim.state.q.numpy()[glue.nodes] - (p + local @ rotation.T)).max())
+        assert np.abs(momentum() - p0).max() < 1e-14
+    assert max(gaps) < 1e-5  # second order in the turn of a step (0.03 rad): r theta^2 / 2 = 3e-6 m
+    _, p = sim.rigid_poses()["weight"]
+    assert p[0] > 0.05 and np.linalg.norm(sim.state.q.numpy().mean(axis=0)[:2]) > 0.005  # both went
+
+
+def test_attachment_input_is_checked():
+    scene, bar, weight, glue = bar_with_weight()
+    with pytest.raises(SceneError, match="selects no node"):
+        scene.attach(bar, ws.InBox((1, 1, 1), (2, 2, 2)), weight, name="none")
+    with pytest.raises(SceneError, match="held by attachment 'glue' already"):
+        scene.attach(bar, ws.InBox((-1, -1, -1), (1, 1, 1e-4)), weight, name="again")
+    with pytest.raises(SceneError, match="exists already"):
+        scene.attach(bar, ws.InBox((-1, -1, 0.02), (1, 1, 0.03)), weight, name="glue")
+    other = ws.Scene("other").add_rigid("cube", ws.obstacles.Box((0, 0, 0), (0.01,) * 3), mass=0.1)
+    with pytest.raises(SceneError, match="rigid must be a rigid body of this scene"):
+        scene.attach(bar, ws.InBox((-1, -1, 0.02), (1, 1, 0.03)), other)
+    scene.fix(bar, ws.InBox((-1, -1, -1), (1, 1, 1e-4)), axes="z")  # the glued face, held as well
+    with pytest.raises(SceneError, match="attachment 'glue': nodes of body 'bar' are also fixed"):
+        ws.Simulator(scene, device="cpu")
+    scene, *_ = bar_with_weight()
+    scene.add_cable("c", scene.bodies[0], [(0, 0, 0.01), (0, 0, 0.04)], pull_point=(0, 0, 0.06))
+    scene.add_effector("tip", (0, 0, 0.0), target=(0, 0, 0.0))
+    scene.use_inverse_model()
+    with pytest.raises(SceneError, match="inverse model does not take attachments"):
+        ws.Simulator(scene, device="cpu")
