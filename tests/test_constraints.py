@@ -5,6 +5,7 @@ import pytest
 import warp as wp
 
 import warpsoft as ws
+from warpsoft import step as step_module
 from warpsoft.linear import SparseDirect
 
 L, H = 0.1, 0.01
@@ -48,7 +49,7 @@ def test_compliance_is_symmetric_positive_definite():
 def test_lambda_as_external_force_agrees_with_X_lambda(static):
     scene = cable_beam()
     scene.static = static
-    sim, _ = run(scene, 1, tolerance=1e-12, newton_iterations=1)  # one linearization, at rest
+    sim, _ = run(scene, 1, solver="pcg", tolerance=1e-12, newton_iterations=1)  # one linearization, at rest
     cs = sim.rows
     rest = wp.clone(sim.model.rest)
     cs.evaluate(rest)  # H and A where the step linearized: the rest state (the simulator holds the next one)
@@ -61,6 +62,37 @@ def test_lambda_as_external_force_agrees_with_X_lambda(static):
     via_columns = np.einsum("c,cnk->nk", sim.lam, sim.X.numpy()) * sim.constraint_scale
     assert np.abs(full).max() > 1e-6
     assert np.abs(full - via_columns).max() < 1e-8 * np.abs(full).max()
+
+
+def test_compliance_from_the_factor_equals_the_solved_columns():
+    """The CPU's direct solver gives ``W`` from its Cholesky factor (``Z^T Z``, ``Z = L^-1 P H^T``)
+    and the correction by one solve of ``s H^T lambda``, never forming the columns ``X``: both
+    equal what the columns give, on a world of cables and an effector beside a world where a
+    soft bar presses on the floor with friction (contact rows on its nodes)."""
+    contact = ws.Scene("press", gravity=(0, 0, -9.81), dt=0.01)
+    bar = contact.add_body("bar", ws.box_grid((0, -H / 2, 0), (L, H / 2, H), (10, 2, 2)), MAT)
+    contact.add_obstacle("floor", ws.obstacles.Floor(), mu=0.5)
+    contact.add_force(bar, ws.InBox((-1, -1, H - 1e-6), (1, 1, 1)), (0.0, 0.0, -5.0))
+    contact.add_cable("c", bar, points=[(x, 0, H / 2) for x in (0.03, 0.06, 0.095)], pull_point=(-0.01, 0, H / 2),
+                      value=0.001)
+    moving = cable_beam()
+    moving.static, moving.steps = False, 10
+    sim = ws.Simulator(ws.finalize([moving, contact], device="cpu"), solver="direct")
+    for _ in range(3):
+        sim.step()
+    rows, s = sim.rows, sim.constraint_scale
+    assert sim.solver.factor_compliance and rows.world_force_rows.numpy()[1] > 1 + 3  # contacts in use
+    sim.solver.compliance(rows, s)
+    from_factor = rows.W.numpy().copy()
+    x = wp.array(sim.solver.solve_array(sim.columns.numpy()), dtype=wp.vec3d, device="cpu")
+    rows.compliance(x, s)  # H X from the solved columns
+    assert np.abs(from_factor).max() > 0
+    assert np.abs(from_factor - rows.W.numpy()).max() < 1e-12 * np.abs(from_factor).max()
+    lam = sim.gauss_seidel.lam
+    lam.assign(np.random.default_rng(1).uniform(-1.0, 1.0, lam.shape[0]))
+    e = step_module.correction(sim, True).numpy().copy()  # dx_free + A^-1 (s H^T lambda)
+    rows.correct(sim.dx_free[0], x, lam, s, sim.dx)
+    assert np.abs(e - sim.dx.numpy()).max() < 1e-12 * np.abs(e).max()
 
 
 def test_displacement_input_is_met_when_forces_stay_within_bounds():

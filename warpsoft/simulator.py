@@ -171,6 +171,10 @@ class Simulator:
             self.columns, self.X = self.rhs[1:], self.sol[1:]
         self.solver = make_solver(self.solver_name, self.operator, 1 + ncol, tolerance, max_iterations, graphs,
                                   check_every, factorization, preconditioner, precision)
+        if getattr(self.solver, "factor_compliance", False) and ncol:  # the correction's solve (no columns X)
+            self.no_motion = wp.zeros(n, dtype=wp.vec3d, device=d)
+            self.row_force = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # s H^T lambda (N)
+            self.row_motion = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # A^-1 of it (m)
         self.solve_result = None  # the last solve's outcome, when it ran outside a graph
         self.newton = Newton(self, newton_iterations, newton_tolerance, line_search)
 

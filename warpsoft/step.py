@@ -19,6 +19,7 @@ import warp as wp
 from warpsoft.kernels.elastic import geometry
 from warpsoft.kernels.linear import cg as linalg
 from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
+from warpsoft.kernels.rows import common as row_kernels
 
 from . import watch
 from .errors import SceneError, SimulationError
@@ -207,14 +208,25 @@ def free_solve(sim: Simulator, actuated: bool, first: bool, captured: bool) -> N
         sim.rigid.accept()
     if captured:
         sim.solver.run(sim.rhs, sim.sol)  # read with the iteration
+    elif from_factor(sim):  # the free motion alone: W comes from the factor, the correction by one more solve
+        sim.solve_result = sim.solver.solve(sim.b, sim.dx_free)
     else:
         sim.solve_result = sim.solver.solve(sim.rhs, sim.sol)  # (pcg: the loop is one graph on CUDA)
+
+
+def from_factor(sim: Simulator) -> bool:
+    """Whether the solver gives ``W`` from its factorization (the CPU's sparse Cholesky), so the
+    force rows' columns ``X`` are never solved for."""
+    return getattr(sim.solver, "factor_compliance", False) and sim.rows is not None and sim.rows.num_columns > 0
 
 
 def compliance(sim: Simulator) -> None:
     """``delta_free = delta(q_k) + H e`` and ``W = s H X`` (device)."""
     sim.rows.predict(sim.dx_free)
-    sim.rows.compliance(sim.X, sim.constraint_scale)
+    if from_factor(sim):
+        sim.solver.compliance(sim.rows, sim.constraint_scale)
+    else:
+        sim.rows.compliance(sim.X, sim.constraint_scale)
     if sim.rigid is not None:  # the rigid bodies' share: their free motion and M^-1 J^T
         sim.rigid.predict()
         sim.rigid.compliance(sim.constraint_scale)
@@ -222,13 +234,19 @@ def compliance(sim: Simulator) -> None:
 
 def correction(sim: Simulator, actuated: bool, make: bool = True) -> wp.array:
     """The iteration's correction ``e = e_free + s X lambda`` (made here from the resolve's
-    multipliers unless ``make`` is False: the line search reuses it), or ``e_free``."""
+    multipliers unless ``make`` is False: the line search reuses it), or ``e_free``; without
+    columns (``from_factor``), ``s A^-1 H^T lambda`` is one more solve."""
     if not actuated:
         return sim.dx_free[0]
-    if make:
+    if make and from_factor(sim):  # e = e_free + A^-1 (s H^T lambda): one solve instead of the columns
+        sim.rows.correct(sim.no_motion, sim.columns, sim.gauss_seidel.lam, sim.constraint_scale, sim.row_force[0])
+        sim.solver.solve(sim.row_force, sim.row_motion)
+        wp.launch(row_kernels.add_motion, sim.model.num_nodes, inputs=[sim.dx_free[0], sim.row_motion[0]],
+                  outputs=[sim.dx], device=sim.model.device)
+    elif make:
         sim.rows.correct(sim.dx_free[0], sim.X, sim.gauss_seidel.lam, sim.constraint_scale, sim.dx)
-        if sim.rigid is not None:
-            sim.rigid.correct(sim.gauss_seidel.lam, sim.constraint_scale)
+    if make and sim.rigid is not None:
+        sim.rigid.correct(sim.gauss_seidel.lam, sim.constraint_scale)
     return sim.dx
 
 

@@ -99,3 +99,10 @@ def rows_transpose_times(
     """``force += H^T lam`` (N): the rows' forces on the nodes."""
     k = wp.tid()
     wp.atomic_add(force, h_node[k], lam[h_row[k]] * h_coef[k])
+
+
+@wp.kernel
+def add_motion(a: wp.array(dtype=wp.vec3d), b: wp.array(dtype=wp.vec3d), out: wp.array(dtype=wp.vec3d)):
+    """``out = a + b`` (m): the free correction plus the rows' (solved from their forces)."""
+    i = wp.tid()
+    out[i] = a[i] + b[i]

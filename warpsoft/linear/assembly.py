@@ -44,6 +44,7 @@ class Assembly:
         self.size = len(self.free)
         renum = np.full(model.num_dofs, -1, dtype=np.int64)
         renum[self.free] = np.arange(self.size)
+        self.renum = renum  # a model DOF's place among the free ones (-1: fixed)
         r, c = renum[rows], renum[cols]
         self.keep = np.flatnonzero((r >= 0) & (c >= 0) & (r >= c))  # free, lower triangle
         key = c[self.keep] * self.size + r[self.keep]  # column-major order = CSC order
@@ -103,6 +104,18 @@ class CholmodFactor:
         y = self._cvxopt.matrix(np.asfortranarray(b))
         self._cholmod.solve(self._symbolic, y)
         return np.asarray(y).reshape(b.shape)
+
+    def forward(self, dof: np.ndarray, column: np.ndarray, value: np.ndarray, columns: int) -> sp.csc_matrix:
+        """``Z = L^-1 P B`` for the sparse ``B`` ``(f, columns)`` given by its entries (free DOF,
+        column, value), where ``A = P^T L L^T P`` (CHOLMOD's supernodal factor is ``L L^T``), so
+        that ``B^T A^-1 B = Z^T Z``. One sparse forward solve: a column of ``Z`` is nonzero only
+        along its DOFs' paths up the elimination tree (5 % of the Grasper's entries)."""
+        cv = self._cvxopt
+        rhs = cv.spmatrix(cv.matrix(value.astype(float)), cv.matrix(dof.astype(int)), cv.matrix(column.astype(int)),
+                          (self.assembly.size, columns))
+        z = self._cholmod.spsolve(self._symbolic, self._cholmod.spsolve(self._symbolic, rhs, sys=7), sys=4)
+        return sp.csc_matrix((np.asarray(z.V).ravel(), (np.asarray(z.I).ravel(), np.asarray(z.J).ravel())),
+                             shape=(self.assembly.size, columns))
 
 
 class SuperLUFactor:

