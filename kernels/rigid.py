@@ -71,13 +71,18 @@ def columns(j_row: wp.array(dtype=wp.int32), j_body: wp.array(dtype=wp.int32), j
 @wp.kernel
 def compliance(j_row: wp.array(dtype=wp.int32), j_body: wp.array(dtype=wp.int32), j_lin: wp.array(dtype=wp.vec3d),
                j_ang: wp.array(dtype=wp.vec3d), y_lin: wp.array2d(dtype=wp.vec3d),
-               y_ang: wp.array2d(dtype=wp.vec3d), scale: wp.float64, W: wp.array2d(dtype=wp.float64)):
-    """``W[r, j] += scale J_r Y[j]``: the rigid bodies' share of the compliance."""
-    e, j = wp.tid()
+               y_ang: wp.array2d(dtype=wp.vec3d), rigid_world: wp.array(dtype=wp.int32),
+               world_force_rows: wp.array(dtype=wp.int32), scale: wp.float64, W: wp.array2d(dtype=wp.float64)):
+    """``W[r, j] += scale J_r Y[j]``: the rigid bodies' share of the compliance, one thread per
+    entry over its world's force rows in use (an inert entry, an unused contact slot's, costs a
+    test: the Grasper has 576 entries and 291 columns, of which about 100 are in use)."""
+    e = wp.tid()
     b = j_body[e]
     if b < 0:
         return
-    wp.atomic_add(W, j_row[e], j, scale * (wp.dot(j_lin[e], y_lin[j, b]) + wp.dot(j_ang[e], y_ang[j, b])))
+    r = j_row[e]
+    for j in range(world_force_rows[rigid_world[b]]):
+        wp.atomic_add(W, r, j, scale * (wp.dot(j_lin[e], y_lin[j, b]) + wp.dot(j_ang[e], y_ang[j, b])))
 
 
 @wp.kernel

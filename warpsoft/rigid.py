@@ -71,8 +71,9 @@ class RigidBodies:
         self._launch(kernels.columns, r.num_rigid_entries,
                      [r.j_row, r.j_body, r.j_lin, r.j_ang, r.column_of_row, self.model.rigid_inv_mass,
                       self.inv_inertia_w, self.y_lin, self.y_ang])
-        self._launch(kernels.compliance, (r.num_rigid_entries, r.num_columns),
-                     [r.j_row, r.j_body, r.j_lin, r.j_ang, self.y_lin, self.y_ang, scale, r.W])
+        self._launch(kernels.compliance, r.num_rigid_entries,
+                     [r.j_row, r.j_body, r.j_lin, r.j_ang, self.y_lin, self.y_ang, self.model.rigid_world,
+                      r.world_force_rows, scale, r.W])
 
     def correct(self, lam: wp.array, scale: float) -> None:
         """The iteration's correction ``e = d_free + scale Y lambda``."""

@@ -91,6 +91,7 @@ class CholmodFactor:
         self._matrix = cvxopt.spmatrix(np.zeros(assembly.nnz), cvxopt.matrix(assembly.indices),
                                        cvxopt.matrix(assembly.columns), (assembly.size, assembly.size))
         self._symbolic = None
+        self._place = None  # where the fill-reducing permutation P puts each DOF (read once, after a factorization)
 
     def factorize(self, values: np.ndarray) -> None:
         """Refactorize for new values; raises ArithmeticError when ``A`` is not positive definite."""
@@ -111,9 +112,13 @@ class CholmodFactor:
         that ``B^T A^-1 B = Z^T Z``. One sparse forward solve: a column of ``Z`` is nonzero only
         along its DOFs' paths up the elimination tree (5 % of the Grasper's entries)."""
         cv = self._cvxopt
-        rhs = cv.spmatrix(cv.matrix(value.astype(float)), cv.matrix(dof.astype(int)), cv.matrix(column.astype(int)),
-                          (self.assembly.size, columns))
-        z = self._cholmod.spsolve(self._symbolic, self._cholmod.spsolve(self._symbolic, rhs, sys=7), sys=4)
+        if self._place is None:  # P is fixed by the analysis: (P b)[i] = b[order[i]]
+            order = cv.matrix(np.arange(self.assembly.size, dtype=float))
+            self._cholmod.solve(self._symbolic, order, sys=7)
+            self._place = np.argsort(np.asarray(order).ravel().round().astype(np.int64))
+        rhs = cv.spmatrix(cv.matrix(value.astype(float)), cv.matrix(self._place[dof]), cv.matrix(column.astype(int)),
+                          (self.assembly.size, columns))  # P B, permuted here
+        z = self._cholmod.spsolve(self._symbolic, rhs, sys=4)
         return sp.csc_matrix((np.asarray(z.V).ravel(), (np.asarray(z.I).ravel(), np.asarray(z.J).ravel())),
                              shape=(self.assembly.size, columns))
 
