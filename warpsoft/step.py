@@ -220,9 +220,9 @@ FACTOR_COLUMNS = 16  # force rows in use from which W comes from the factor rath
 def from_factor(sim: Simulator) -> bool:
     """Whether this iteration takes ``W`` from the solver's factorization (the CPU's sparse
     Cholesky), never solving the force rows' columns ``X``: when at least
-    :data:`FACTOR_COLUMNS` force rows are in use (contacts). Its cost is about 1 ms plus
-    0.02 ms a row, against 0.07 ms a solved column (2-core VM): fewer rows, as the Finger's
-    one cable, go faster as columns. (The rows in use are set by the detection, before the
+    :data:`FACTOR_COLUMNS` force rows are in use (contacts). It cost 1.5 ms for the Finger's
+    few rows and 2.7 ms for the Grasper's 108, against 0.07 ms a solved column (2-core VM):
+    a few rows go faster as columns. (The rows in use are set by the detection, before the
     solve: one answer for the whole iteration.)"""
     if not getattr(sim.solver, "factor_compliance", False) or sim.rows is None or not sim.rows.num_columns:
         return False

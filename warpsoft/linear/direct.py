@@ -61,7 +61,7 @@ class SparseDirect:
         """``W = scale H A^-1 H_f^T`` into ``rows.W`` (every row against its world's force rows in
         use) from the factor, without the columns ``X = A^-1 H_f^T``: ``Z = L^-1 P H^T`` over the
         rows that have soft entries, by one sparse forward solve, then ``W = Z^T Z_f``. Measured
-        on the Grasper (108 force rows, 2-core VM): 2.3 ms, against 7.4 ms for solving the 108
+        on the Grasper (108 force rows, 2-core VM): 2.7 ms, against 7.4 ms for solving the 108
         columns. CPU device only (the rows' arrays are read in place)."""
         h_row, h_node, h_coef = rows.h_row.numpy(), rows.h_node.numpy(), rows.h_coef.numpy()
         dof = self.assembly.renum[3 * h_node[:, None] + np.arange(3)]  # (entries, 3)
