@@ -10,7 +10,6 @@ import warp as wp
 
 from warpsoft.kernels.rows import attachment as kernels
 
-from ..errors import SceneError
 from .kind import RowKind
 
 
@@ -29,11 +28,7 @@ class AttachmentRows(RowKind):
         self.ranges = []  # (world, name, first row, held nodes) of each attachment
         for p in placed:
             a = p.item
-            ids = a.nodes + model.body_info(a.body.name, p.world).node_start
-            held = model.mask_np[ids] == 0.0
-            if held.any():  # (a fixed region with a motion is checked here: the scene checks the others)
-                raise SceneError(f"attachment '{a.name}': node {int(a.nodes[np.argmax(held.any(axis=1))])} of body "
-                                 f"'{a.body.name}' is also fixed; a node is held by a fixed region or a rigid body")
+            ids = a.nodes + model.body_info(a.body.name, p.world).node_start  # (none fixed: Scene.validate)
             node.append(ids)
             body.append(np.full(len(ids), rigid_index[(p.world, id(a.rigid))]))
             local.append(model.rest_np[ids] - a.rigid.center)  # the body's frame: world axes at t = 0
