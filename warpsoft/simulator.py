@@ -125,7 +125,7 @@ class Simulator:
         self.rows = None
         self.constraint_scale = 1.0 if m.static else h * h  # dx = dx_free + s X lambda, W = s H X
         ncol = 0
-        if any(s.actuators or s.effectors or s.obstacles or s.rigid_bodies for s in m.scenes):
+        if any(s.actuators or s.effectors or s.touches for s in m.scenes):
             self.rows = Rows(m)
             ncol = self.rows.num_columns
             self.gauss_seidel = GaussSeidel(self.rows)
@@ -137,10 +137,10 @@ class Simulator:
                           and self.rows.world_actuators[w]]
         small = bool(inverse_worlds) and max(self.rows.world_actuators[w] for w in inverse_worlds) <= AUTO_DEVICE_QP
         # their QPCC runs on the host
-        touching = [w for w in inverse_worlds if m.scenes[w].obstacles or m.scenes[w].rigid_bodies]
+        touching = [w for w in inverse_worlds if m.scenes[w].touches]
         if touching and qp == "device":
             raise SceneError(f"Simulator: qp='device' has no contacts, but inverse world {touching[0]} has "
-                             "obstacles (its QPCC runs on the host); use qp='piqp' or 'auto'")
+                             "contacts (its QPCC runs on the host); use qp='piqp' or 'auto'")
         if inverse_worlds and not touching and (qp == "device" or (qp == "auto" and d.is_cuda and small)):
             self.device_inverse = DeviceInverse(self.rows, m.scenes, self.effector_weights)
             if not self.device_inverse.usable:

@@ -80,9 +80,9 @@ def contacts(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarra
     found, capacity = int(host["contacts_found"][w]), int(rows.world_contacts[w]) // rps
     if begins(sim, ("overflow", w), found > capacity):
         stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: {found} points came within contact distance "
-                              f"of an obstacle or rigid body, more than the scene's {capacity} contact rows: the "
-                              f"first {capacity} (in node order) were kept, the others may go through; raise it with "
-                              "scene.set_contacts(capacity)")
+                              f"of an obstacle, a rigid body or their own surface, more than the scene's {capacity} "
+                              f"contact rows: the first {capacity} (in node order) were kept, the others may go "
+                              "through; raise it with scene.set_contacts(capacity)")
 
 
 UNPREDICTED = 0.2  # rows ending this far (relative to the step's largest node motion) from the linear prediction

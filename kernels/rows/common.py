@@ -47,9 +47,12 @@ def rows_times_columns(
     scale: wp.float64,
     w: wp.array2d(dtype=wp.float64),
 ):
-    """``w[row, c] += scale * H[row] . x[c]`` (launched over entries x columns): ``W = s H X``."""
+    """``w[row, c] += scale * H[row] . x[c]`` (launched over entries x columns): ``W = s H X``. An
+    inert entry (0: an unused contact slot's) adds nothing and is skipped."""
     k, c = wp.tid()
-    wp.atomic_add(w, h_row[k], c, scale * wp.dot(h_coef[k], x[c, h_node[k]]))
+    coef = h_coef[k]
+    if coef[0] != wp.float64(0.0) or coef[1] != wp.float64(0.0) or coef[2] != wp.float64(0.0):
+        wp.atomic_add(w, h_row[k], c, scale * wp.dot(coef, x[c, h_node[k]]))
 
 
 @wp.kernel

@@ -14,12 +14,16 @@ body's centre of mass); an unused slot's row is inert (no entry, ``delta = 0``).
 
 import warp as wp
 
+from .closest import triangle_closest
+from .self_contact import self_gap, self_nearest
+
 FLOOR = wp.constant(0)
 BALL = wp.constant(1)
 BOX = wp.constant(2)
 CAPSULE = wp.constant(3)
 CYLINDER = wp.constant(4)
 MESH = wp.constant(5)
+SELF = wp.constant(6)  # a body's own surface (self_contact.py): a, b, rot unused, radius the rest-shape apart distance
 
 
 @wp.func
@@ -97,39 +101,6 @@ def cylinder_distance(x: wp.vec3d, a: wp.vec3d, b: wp.vec3d, radius: wp.float64)
 
 
 @wp.func
-def triangle_closest(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
-    """The point of triangle ``abc`` nearest to ``p``, and whether it lies inside the face (not on
-    an edge or a vertex): by the Voronoi region of ``p``, from the dot products of ``p``'s
-    offsets with the two edges at ``a``."""
-    zero = wp.float64(0.0)
-    ab = b - a
-    ac = c - a
-    d1 = wp.dot(ab, p - a)
-    d2 = wp.dot(ac, p - a)
-    if d1 <= zero and d2 <= zero:
-        return a, False
-    d3 = wp.dot(ab, p - b)
-    d4 = wp.dot(ac, p - b)
-    if d3 >= zero and d4 <= d3:
-        return b, False
-    vc = d1 * d4 - d3 * d2
-    if vc <= zero and d1 >= zero and d3 <= zero:  # edge ab
-        return a + (d1 / (d1 - d3)) * ab, False
-    d5 = wp.dot(ab, p - c)
-    d6 = wp.dot(ac, p - c)
-    if d6 >= zero and d5 <= d6:
-        return c, False
-    vb = d5 * d2 - d1 * d6
-    if vb <= zero and d2 >= zero and d6 <= zero:  # edge ac
-        return a + (d2 / (d2 - d6)) * ac, False
-    va = d3 * d6 - d5 * d4
-    if va <= zero and d4 - d3 >= zero and d5 - d6 >= zero:  # edge bc
-        return b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b), False
-    inv = wp.float64(1.0) / (va + vb + vc)  # the face
-    return a + ab * (vb * inv) + ac * (vc * inv), True
-
-
-@wp.func
 def mesh_distance(x: wp.vec3d, origin: wp.vec3d, rot: wp.mat33d, mesh: wp.uint64, tri0: int,
                   tri_xyz: wp.array2d(dtype=wp.vec3d)):
     """Signed distance to a triangle mesh posed by ``(rot, origin)``, and its outward normal: the
@@ -183,7 +154,10 @@ class Obstacles:
     """Every (obstacle, body) record of the model, one entry each: its kind, two points ``a``,
     ``b`` (m), radius (m) and rotation (world from local), as ``obstacle_distance`` reads them;
     for a mesh its BVH id and first triangle in ``tri_xyz`` (all meshes' triangles, ``(t, 3)``
-    vertices in double); ``reach`` the contact distance (m)."""
+    vertices in double); ``reach`` the contact distance (m). Self-contact records (``SELF``) have
+    a BVH of their body's surface, their first triangle in ``tri_nodes`` (every self-contact
+    body's surface triangles, global node ids) and, in ``radius``, the distance (m) within which
+    a node and a triangle of the rest shape ``rest`` (``(n,)`` m) are neighbours."""
 
     kind: wp.array(dtype=wp.int32)
     a: wp.array(dtype=wp.vec3d)
@@ -194,6 +168,8 @@ class Obstacles:
     tri0: wp.array(dtype=wp.int32)
     tri_xyz: wp.array2d(dtype=wp.vec3d)
     reach: wp.array(dtype=wp.float64)
+    tri_nodes: wp.array(dtype=wp.vec3i)
+    rest: wp.array(dtype=wp.vec3d)
 
 
 @wp.func
@@ -270,13 +246,25 @@ def mark_candidates(
     owner: wp.array(dtype=wp.int32),
     bodies: Bodies,
     h: wp.float64,
+    v: wp.array(dtype=wp.vec3d),
+    normal: wp.array(dtype=wp.vec3d),
     near: wp.array(dtype=wp.int32),
+    cand_tri: wp.array(dtype=wp.int32),
 ):
     """``near[c] = 1`` when candidate ``c``'s point is within its record's contact distance; where
     a rigid body takes part, the distance grows by what the bodies can cover in the step (``h``
-    times their points' speeds), so that a falling solid is caught before it passes through."""
+    times their points' speeds), so that a falling solid is caught before it passes through. A
+    self-contact candidate keeps the triangle it meets in ``cand_tri[c]`` (``v`` the nodes'
+    velocities, m/s, widen its reach the same way; ``normal`` says where the surface faces at
+    each node)."""
     c = wp.tid()
     o = points.obstacle[c]
+    if obstacles.kind[o] == SELF:
+        t, dist = self_nearest(obstacles.mesh[o], obstacles.tri0[o], obstacles.tri_nodes, q, v, normal, obstacles.rest,
+                               points.node[c], obstacles.reach[o], obstacles.radius[o], h)
+        cand_tri[c] = t
+        near[c] = wp.where(t >= 0, 1, 0)
+        return
     x = point_at(points, bodies, q, c)
     phi, n = record_distance(obstacles, o, x)
     reach = obstacles.reach[o] + h * (body_speed(bodies, points.body[c], x) + body_speed(bodies, owner[o], x))
@@ -309,7 +297,11 @@ def assign_slots(
     contact_row: wp.array(dtype=wp.int32),
     rows_per_slot: wp.array(dtype=wp.int32),
     world_held: wp.array(dtype=wp.int32),
+    obstacles: Obstacles,
+    cand_tri: wp.array(dtype=wp.int32),
     slot_candidate: wp.array(dtype=wp.int32),
+    slot_tri: wp.array(dtype=wp.int32),
+    slot_weights: wp.array(dtype=wp.vec3d),
     anchor: wp.array(dtype=wp.vec3d),
     found: wp.array(dtype=wp.int32),
     force_rows: wp.array(dtype=wp.int32),
@@ -323,7 +315,9 @@ def assign_slots(
     contact, 3 with friction: normal, then two tangents, whose ``friction`` is the record's
     coefficient). A slot keeps the point's position
     now as the anchor its tangential slip is measured from: carried over the step by a moving
-    obstacle, or kept in the owner's frame for a rigid body's solid. A contact's multipliers
+    obstacle, or kept in the owner's frame for a rigid body's solid; a self-contact keeps its
+    triangle, the weights of the triangle's point nearest to the node now, and the node's
+    offset from that point (its slip is measured between the two). A contact's multipliers
     start from what its candidate carried at the last step (0 for a new contact)."""
     w = wp.tid()
     cap = capacity[w]
@@ -345,7 +339,14 @@ def assign_slots(
                 o = points.obstacle[c]
                 x = point_at(points, bodies, q, c)
                 b = owner[o]
-                if b >= 0:  # in the owner's frame
+                if obstacles.kind[o] == SELF:  # the node's offset from the triangle's nearest point
+                    t = cand_tri[c]
+                    tri = obstacles.tri_nodes[t]
+                    gap, n, w3, dist = self_gap(x, q[tri[0]], q[tri[1]], q[tri[2]])
+                    slot_tri[slot_start[w] + k] = t
+                    slot_weights[slot_start[w] + k] = w3
+                    anchor[slot_start[w] + k] = x - (w3[0] * q[tri[0]] + w3[1] * q[tri[1]] + w3[2] * q[tri[2]])
+                elif b >= 0:  # in the owner's frame
                     anchor[slot_start[w] + k] = wp.quat_rotate_inv(bodies.r[b], x - bodies.p[b])
                 else:  # the point's place now, carried as the obstacle moves over the step
                     anchor[slot_start[w] + k] = step_rot[o] * x + step_shift[o]
@@ -369,12 +370,15 @@ def contact_rows(
     slot_row: wp.array(dtype=wp.int32),
     slot_rows: wp.array(dtype=wp.int32),
     slot_entry: wp.array(dtype=wp.int32),
+    slot_tri: wp.array(dtype=wp.int32),
+    slot_weights: wp.array(dtype=wp.vec3d),
     anchor: wp.array(dtype=wp.vec3d),
     points: Points,
     obstacles: Obstacles,
     owner: wp.array(dtype=wp.int32),
     bodies: Bodies,
     entry_offset: int,
+    entries_per_row: int,
     rigid_offset: int,
     delta: wp.array(dtype=wp.float64),
     h_row: wp.array(dtype=wp.int32),
@@ -388,11 +392,13 @@ def contact_rows(
     row_dir: wp.array(dtype=wp.vec3d),
 ):
     """The rows of slot ``k`` at ``q`` and the bodies' poses (first row ``slot_row[k]``,
-    ``slot_rows[k]`` of them, one soft entry each from ``entry_offset + slot_entry[k]`` and, with
-    rigid bodies (``rigid_offset >= 0``), two rigid entries each from ``rigid_offset + 2
-    slot_entry[k]``): the gap along the normal, and with friction the slip from the anchor along
-    two tangents. ``slot_point`` keeps the point (m) and ``row_dir`` each row's direction at it
-    (what the force on the point is made of). An unused slot's rows are inert."""
+    ``slot_rows[k]`` of them, ``entries_per_row`` soft entries each from ``entry_offset +
+    entries_per_row slot_entry[k]`` (1, or 4 in a model with self-contact: the node, then a
+    triangle's three) and, with rigid bodies (``rigid_offset >= 0``), two rigid entries each from
+    ``rigid_offset + 2 slot_entry[k]``): the gap along the normal, and with friction the slip
+    from the anchor along two tangents. ``slot_point`` keeps the point (m) and ``row_dir`` each
+    row's direction at it (what the force on the point is made of). An unused slot's rows are
+    inert."""
     k = wp.tid()
     c = slot_candidate[k]
     node = wp.int32(0)
@@ -402,6 +408,8 @@ def contact_rows(
     phi = wp.float64(0.0)
     x, slip = wp.vec3d(), wp.vec3d()
     n, t1, t2 = wp.vec3d(), wp.vec3d(), wp.vec3d()
+    tri = wp.vec3i(0, 0, 0)  # a self-contact's triangle, its nearest point's weights now and at the anchor
+    w_now, w_anchor = wp.vec3d(), wp.vec3d()
     # lever arms from the bodies' centres (m): the point's, and the owner's to the point (normal
     # row) and to the anchor (tangent rows)
     r_point, r_normal, r_anchor = wp.vec3d(), wp.vec3d(), wp.vec3d()
@@ -415,34 +423,48 @@ def contact_rows(
             soft = wp.float64(1.0)
         else:
             r_point = x - bodies.p[pb]
-        a = anchor[k]
-        if ob >= 0:
-            a = bodies.p[ob] + wp.quat_rotate(bodies.r[ob], anchor[k])
-            r_normal = x - bodies.p[ob]
-            r_anchor = a - bodies.p[ob]
-        phi, n = record_distance(obstacles, o, x)
+        if obstacles.kind[o] == SELF:  # against the triangle: gap from its nearest point, slip from the anchor's
+            tri = obstacles.tri_nodes[slot_tri[k]]
+            xa, xb, xc = q[tri[0]], q[tri[1]], q[tri[2]]
+            phi, n, w_now, dist = self_gap(x, xa, xb, xc)
+            w_anchor = slot_weights[k]
+            slip = x - (w_anchor[0] * xa + w_anchor[1] * xb + w_anchor[2] * xc) - anchor[k]
+        else:
+            a = anchor[k]
+            if ob >= 0:
+                a = bodies.p[ob] + wp.quat_rotate(bodies.r[ob], anchor[k])
+                r_normal = x - bodies.p[ob]
+                r_anchor = a - bodies.p[ob]
+            phi, n = record_distance(obstacles, o, x)
+            slip = x - a
         t1, t2 = tangents(n)
-        slip = x - a
     slot_point[k] = x
     for m in range(slot_rows[k]):
         row = slot_row[k] + m
-        e = entry_offset + slot_entry[k] + m
+        e = entry_offset + entries_per_row * (slot_entry[k] + m)
         d = n
         value = phi
         r_o = r_normal
+        w_tri = w_now
         if m == 1:
             d = t1
             value = wp.dot(t1, slip)
             r_o = r_anchor
+            w_tri = w_anchor
         elif m == 2:
             d = t2
             value = wp.dot(t2, slip)
             r_o = r_anchor
+            w_tri = w_anchor
         if c < 0:
             value = wp.float64(0.0)
         h_row[e] = row
         h_node[e] = node
         h_coef[e] = soft * d
+        for i in range(1, entries_per_row):  # the triangle's nodes (0 weights: an inert entry)
+            h_row[e + i] = row
+            h_node[e + i] = tri[i - 1]
+            h_coef[e + i] = -w_tri[i - 1] * d
         delta[row] = value
         row_dir[slot_entry[k] + m] = d
         if rigid_offset >= 0:

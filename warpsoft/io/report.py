@@ -85,6 +85,7 @@ class RunReport:
         if self.sim.rows.kind("contact") is not None:
             out["contacts"] = {"obstacles": [o.name for o in self.sim.model.scene.obstacles],
                                "rigid_bodies": [rb.name for rb in self.sim.model.scene.rigid_bodies],
+                               "self_contact": [c.body.name for c in self.sim.model.scene.self_contacts],
                                "count": [s.contacts for s in self.steps],
                                "normal_force": [s.contact_force for s in self.steps],
                                "friction_force": [s.friction_force for s in self.steps],
@@ -104,7 +105,7 @@ class RunReport:
             out["inverse"] = {"epsilon": self.sim.model.scene.inverse_epsilon,
                               "qp_status": [s.qp_status for s in self.steps],
                               "qp_seconds": [s.qp_seconds for s in self.steps]}
-            if self.sim.model.scene.obstacles or self.sim.model.scene.rigid_bodies:  # the QPCC's pivots
+            if self.sim.model.scene.touches:  # the QPCC's pivots
                 out["inverse"]["qp_pivots"] = [s.qp_pivots for s in self.steps]
         return out
 

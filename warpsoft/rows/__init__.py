@@ -225,9 +225,14 @@ class Rows:
 
     def compliance(self, x: wp.array, scale: float) -> None:
         """``W = scale H X`` (device) against the actuator columns ``X``; ``(rows, columns)``, row
-        ``r`` against its own world's columns."""
+        ``r`` against its own world's columns. On the CPU device only the columns of force rows
+        in use are formed (the count is read in place; a cavity's thousands of entries against
+        every contact slot's column cost 20 ms on the pneunet); a CUDA graph forms them all."""
         self.W.zero_()
-        wp.launch(kernels.rows_times_columns, (self.num_entries, self.num_columns),
+        columns = self.num_columns
+        if not self.device.is_cuda:
+            columns = int(self.world_force_rows.numpy().max(initial=0))
+        wp.launch(kernels.rows_times_columns, (self.num_entries, columns),
                   inputs=[self.h_row, self.h_node, self.h_coef, x, scale], outputs=[self.W], device=self.device)
 
     def predict(self, dx: wp.array) -> wp.array:

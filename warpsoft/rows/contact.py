@@ -5,9 +5,10 @@ point was at the step's start, whose forces stay in Coulomb's cone ``|lambda_t| 
 
 The points are the soft bodies' surface nodes and the rigid bodies' collision points; the solids
 are the obstacles (fixed or moving by a schedule) and the rigid bodies' own (a body's points
-meet every other body's solid, never its own). A world has a fixed block of ``capacity`` contact
-slots (1 or 3 rows each); detection, at the start of a step, fills the first of them with the
-points then within their solid's contact distance of where it will be at the step's end (in
+meet every other body's solid, never its own), and, for a body that touches itself, its own
+surface triangles (``kernels/rows/self_contact.py``: rows on four nodes). A world has a fixed
+block of ``capacity`` contact slots (1 or 3 rows each); detection, at the start of a step,
+fills the first of them with the points then within their solid's contact distance of where it will be at the step's end (in
 candidate order: deterministic); a moving obstacle carries the anchors of its contacts, a rigid
 body keeps them in its frame; the rows are evaluated at every linearization of the step for
 those points, and the rest stay inert. More near points than slots is an overflow, reported.
@@ -22,8 +23,10 @@ import numpy as np
 import warp as wp
 
 from warpsoft.kernels.rows import contact as kernels
+from warpsoft.kernels.rows import self_contact as self_kernels
 
 from ..scene import obstacles as ob
+from ..scene.obstacles import SelfContact
 from .kind import RowKind
 
 RIGID_REACH = 0.02  # default contact distance for a rigid body's points: this share of its size (m/m)
@@ -31,12 +34,13 @@ RIGID_REACH = 0.02  # default contact distance for a rigid body's points: this s
 
 @dataclass
 class ContactBlock:
-    """A world's block of contact rows: its obstacles and rigid bodies and capacity (the
-    scene's) and the rows per contact (3 when some solid has friction: the normal and two
+    """A world's block of contact rows: its obstacles, rigid bodies, self-contacts and capacity
+    (the scene's) and the rows per contact (3 when some solid has friction: the normal and two
     tangents, else 1)."""
 
     obstacles: list
     rigid: list
+    selfs: list
     capacity: int
     rows_per_contact: int
     name: str = "contacts"
@@ -54,10 +58,11 @@ class ContactRows(RowKind):
 
     @classmethod
     def items(cls, scene) -> list:
-        if not scene.obstacles and not scene.rigid_bodies:
+        if not scene.touches:
             return []
-        rows = 3 if any(o.mu > 0 for o in scene.obstacles + scene.rigid_bodies) else 1
-        return [ContactBlock(list(scene.obstacles), list(scene.rigid_bodies), scene.contact_capacity, rows)]
+        rows = 3 if any(o.mu > 0 for o in scene.obstacles + scene.rigid_bodies + scene.self_contacts) else 1
+        return [ContactBlock(list(scene.obstacles), list(scene.rigid_bodies), list(scene.self_contacts),
+                             scene.contact_capacity, rows)]
 
     @staticmethod
     def row_count(item) -> int:
@@ -81,6 +86,8 @@ class ContactRows(RowKind):
             for att in scene.attachments:
                 ids = att.nodes + model.body_info(att.body.name, w).node_start
                 held.setdefault(rigid_index[(w, id(att.rigid))], []).extend(ids.tolist())
+
+        surfaces = []  # the self-contact bodies' surfaces: (world, BodyInfo)
 
         def add(entry, pack, owner, reach, mu, nodes=None, body=None):  # one record and its candidates
             k, pa, pb, r, R = pack
@@ -133,6 +140,12 @@ class ContactRows(RowKind):
                     for j, reach in rigids:
                         if j != k:
                             add(rb, pack, k, rb.contact_distance or reach, rb.mu, body=j)
+                for sc in p.item.selfs:  # a body's surface nodes against its own triangles
+                    info = model.body_info(sc.body.name, w)
+                    reach = sc.contact_distance or 0.25 * mean_surface_edge(sc.body.mesh)
+                    pack = (kernels.SELF, np.zeros(3), np.zeros(3), 2.0 * reach, np.eye(3))  # radius: apart
+                    add(sc, pack, -1, reach, sc.mu, nodes=np.unique(info.surface))
+                    surfaces.append(info)
                 rps = p.item.rows_per_contact
                 capacity[w], rows_per_slot[w] = p.item.capacity, rps
                 contact_row[w] = p.first_row
@@ -142,7 +155,9 @@ class ContactRows(RowKind):
             slot_start.append(slot_start[-1] + int(capacity[w]))
         self.num_slots = slot_start[-1]
         slot_rows = np.concatenate(slot_rows)
-        self.num_entries = int(slot_rows.sum())
+        # soft entries per row: the point, and with self-contact a triangle's three nodes
+        self.entries_per_row = 4 if surfaces else 1
+        self.num_entries = self.entries_per_row * int(slot_rows.sum())
         self.num_rigid_entries = 2 * self.num_entries if model.num_rigid else 0  # the point's body, the solid's
         self.num_candidates = cand_start[-1]
         i32 = lambda v: wp.array(np.asarray(v, dtype=np.int32), dtype=wp.int32, device=d)  # noqa: E731
@@ -156,14 +171,16 @@ class ContactRows(RowKind):
         self.owned = np.flatnonzero(np.array(rec["owner"]) >= 0)
         self.owned_d = i32(self.owned if len(self.owned) else [0])
         self._meshes(d)
+        self._surfaces(surfaces, d)
         # how a point fixed to each obstacle moves over the step: x -> step_rot x + step_shift
         n_rec = len(rec["kind"])
         self.step_rot = wp.array(np.tile(np.eye(3), (n_rec, 1, 1)), dtype=wp.mat33d, device=d)
         self.step_shift = wp.zeros(n_rec, dtype=wp.vec3d, device=d)
         self.moving = [i for i, e in enumerate(self.records) if getattr(e, "motion", None) is not None]
         self.obstacles = kernels.Obstacles()  # the records as the kernels take them (the same arrays)
-        for name in ("kind", "a", "b", "radius", "rot", "mesh", "tri0", "tri_xyz", "reach"):
+        for name in ("kind", "a", "b", "radius", "rot", "mesh", "tri0", "tri_xyz", "reach", "tri_nodes"):
             setattr(self.obstacles, name, getattr(self, name))
+        self.obstacles.rest = model.rest
         self._posed_at = None
         self.cand_node = i32(np.concatenate(cand["node"]))
         self.points = kernels.Points()
@@ -182,6 +199,9 @@ class ContactRows(RowKind):
         self.cand_lam = wp.zeros((max(self.num_candidates, 1), 3), dtype=wp.float64, device=d)  # warm starts (N)
         self.anchor = wp.zeros(self.num_slots, dtype=wp.vec3d, device=d)  # where each contact's point began (m)
         self.slot_candidate = wp.full(self.num_slots, -1, dtype=wp.int32, device=d)
+        self.cand_tri = wp.full(max(self.num_candidates, 1), -1, dtype=wp.int32, device=d)  # self-contact
+        self.slot_tri = wp.zeros(self.num_slots, dtype=wp.int32, device=d)  # a self-contact's triangle
+        self.slot_weights = wp.zeros(self.num_slots, dtype=wp.vec3d, device=d)  # and its anchor's weights
         self.slot_point = wp.zeros(self.num_slots, dtype=wp.vec3d, device=d)  # each contact's point (m)
         self.row_dir = wp.zeros(self.num_entries, dtype=wp.vec3d, device=d)  # each row's direction at it
         self.found = wp.zeros(worlds, dtype=wp.int32, device=d)  # near points per world at the last detection
@@ -205,6 +225,15 @@ class ContactRows(RowKind):
             self._bodies[key] = b
         return self._bodies[key]
 
+    def velocities(self, table) -> wp.array:
+        """The nodes' velocities (m/s) of the State the rows are evaluated at (0 without one)."""
+        state = table.bodies
+        if state is None or getattr(state, "v", None) is None:
+            if getattr(self, "_still", None) is None:
+                self._still = wp.zeros(self.model.num_nodes, dtype=wp.vec3d, device=self.model.device)
+            return self._still
+        return state.v
+
     def _pose(self, bodies) -> None:
         """The rigid bodies' solids where their bodies are (before a detection or an evaluation)."""
         if len(self.owned):
@@ -218,7 +247,7 @@ class ContactRows(RowKind):
         self.bvh, ids, tri0, xyz, made = [], [], [], [], {}
         count = 0
         for entry in self.records:
-            shape = entry.shape
+            shape = None if isinstance(entry, SelfContact) else entry.shape
             if not isinstance(shape, ob.Mesh):
                 ids.append(0)
                 tri0.append(0)
@@ -235,6 +264,37 @@ class ContactRows(RowKind):
         self.mesh = wp.array(np.array(ids, dtype=np.uint64), dtype=wp.uint64, device=device)
         self.tri0 = wp.array(np.array(tri0, dtype=np.int32), dtype=wp.int32, device=device)
         self.tri_xyz = wp.array(np.concatenate(xyz) if xyz else np.zeros((1, 3, 3)), dtype=wp.vec3d, device=device)
+
+    def _surfaces(self, surfaces: list, device) -> None:
+        """Each self-contact body's surface: its triangles (global node ids, in ``tri_nodes``
+        from the record's ``tri0``) and a BVH over them (``wp.Mesh``, single precision) whose
+        vertices :meth:`detect` moves to the nodes and refits."""
+        self.surface_bvh, tris, nodes = [], [], []
+        self.surface_points = wp.zeros(max(sum(i.node_count for i in surfaces), 1), dtype=wp.vec3, device=device)
+        start = count = 0
+        tri0 = self.tri0.numpy()
+        selfs = [o for o, e in enumerate(self.records) if isinstance(e, SelfContact)]
+        for o, info in zip(selfs, surfaces, strict=True):
+            view = self.surface_points[start:start + info.node_count]
+            view.assign(self.model.rest_np[info.node_start:info.node_start + info.node_count].astype(np.float32))
+            local = (info.surface - info.node_start).astype(np.int32)
+            self.surface_bvh.append(wp.Mesh(points=view, indices=wp.array(local.ravel(), dtype=wp.int32,
+                                                                           device=device)))
+            tri0[o] = count
+            tris.append(info.surface)
+            nodes.append(np.arange(info.node_start, info.node_start + info.node_count))
+            start += info.node_count
+            count += len(info.surface)
+        if selfs:
+            mesh = self.mesh.numpy()
+            mesh[selfs] = [bvh.id for bvh in self.surface_bvh]
+            self.mesh.assign(mesh)
+            self.tri0.assign(tri0)
+        self.tri_nodes = wp.array(np.concatenate(tris).astype(np.int32) if tris else np.zeros((1, 3), np.int32),
+                                  dtype=wp.vec3i, device=device)
+        self.surface_normal = wp.zeros(self.model.num_nodes if selfs else 1, dtype=wp.vec3d, device=device)
+        self.surface_node = wp.array(np.concatenate(nodes).astype(np.int32) if nodes else np.zeros(1, np.int32),
+                                     dtype=wp.int32, device=device)
 
     def set_time(self, t: float, dt: float) -> None:
         """The moving obstacles where they are at the step's end ``t`` (s), and how they moved
@@ -276,22 +336,31 @@ class ContactRows(RowKind):
         follow; a contact's multiplier starts from its candidate's at the last step."""
         d, bodies = self.model.device, self.bodies(table.bodies)
         self._pose(bodies)
+        if self.surface_bvh:  # the self-contact surfaces where the nodes are
+            wp.launch(self_kernels.surface_points, len(self.surface_node), inputs=[q, self.surface_node],
+                      outputs=[self.surface_points], device=d)
+            for bvh in self.surface_bvh:
+                bvh.refit()
+            self.surface_normal.zero_()
+            wp.launch(self_kernels.surface_normals, len(self.tri_nodes), inputs=[q, self.tri_nodes],
+                      outputs=[self.surface_normal], device=d)
         wp.launch(kernels.mark_candidates, self.num_candidates,
-                  inputs=[q, self.points, self.obstacles, self.owner, bodies, self.model.dt], outputs=[self.near],
-                  device=d)
+                  inputs=[q, self.points, self.obstacles, self.owner, bodies, self.model.dt, self.velocities(table),
+                          self.surface_normal],
+                  outputs=[self.near, self.cand_tri], device=d)
         wp.launch(kernels.assign_slots, self.model.num_worlds,
                   inputs=[q, self.world_cand_start, self.near, self.points, bodies, self.owner, self.mu,
                           self.step_rot, self.step_shift, self.capacity, self.slot_start, self.contact_row,
-                          self.rows_per_slot, table.world_held_d],
-                  outputs=[self.slot_candidate, self.anchor, self.found, table.world_force_rows, lam, friction,
-                           self.cand_lam], device=d)
+                          self.rows_per_slot, table.world_held_d, self.obstacles, self.cand_tri],
+                  outputs=[self.slot_candidate, self.slot_tri, self.slot_weights, self.anchor, self.found,
+                           table.world_force_rows, lam, friction, self.cand_lam], device=d)
 
     def evaluate(self, table, q) -> None:
         bodies = self.bodies(table.bodies)
         self._pose(bodies)
         wp.launch(kernels.contact_rows, self.num_slots,
-                  inputs=[q, self.slot_candidate, self.slot_row, self.slot_rows, self.slot_entry, self.anchor,
-                          self.points, self.obstacles, self.owner, bodies, self.entry_offset,
-                          self.rigid_offset if self.num_rigid_entries else -1],
+                  inputs=[q, self.slot_candidate, self.slot_row, self.slot_rows, self.slot_entry, self.slot_tri,
+                          self.slot_weights, self.anchor, self.points, self.obstacles, self.owner, bodies,
+                          self.entry_offset, self.entries_per_row, self.rigid_offset if self.num_rigid_entries else -1],
                   outputs=[table.delta, table.h_row, table.h_node, table.h_coef, table.j_row, table.j_body,
                            table.j_lin, table.j_ang, self.slot_point, self.row_dir], device=self.model.device)

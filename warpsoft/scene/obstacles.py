@@ -344,6 +344,19 @@ class ObstacleEntry:
         return self.shape if self.motion is None else self.shape.moved(*self.pose(t))
 
 
+@dataclass
+class SelfContact:
+    """A body that touches itself (use :meth:`Scene.add_self_contact`): its surface nodes meet its
+    own surface triangles, with Coulomb friction ``mu``, within ``contact_distance`` (m; None: a
+    quarter of its mean surface edge). A node and a triangle closer than twice that distance in
+    the rest shape are neighbours, never a contact (a corner's faces, a thin wall's two sides)."""
+
+    name: str
+    body: object
+    mu: float = 0.0
+    contact_distance: float | None = None
+
+
 def pose_of(motion: Callable[[float], object], t: float, what: str) -> tuple[np.ndarray, np.ndarray]:
     """``motion(t)`` read as a rigid pose: a translation (3 numbers, m) or a pair
     ``(rotation 3x3, translation)``; anything else, or a failure of the user's code, is a

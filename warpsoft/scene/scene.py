@@ -18,7 +18,7 @@ from .cavity import Cavity
 from .effector import Effector
 from .material import Material
 from .mesh import TetMesh
-from .obstacles import Obstacle, ObstacleEntry, pose_of
+from .obstacles import Obstacle, ObstacleEntry, SelfContact, pose_of
 from .regions import Region, as_region
 from .rigid import Attachment, RigidBody, make_rigid
 
@@ -144,6 +144,7 @@ class Scene:
         self.obstacles: list[ObstacleEntry] = []
         self.rigid_bodies: list[RigidBody] = []
         self.attachments: list[Attachment] = []
+        self.self_contacts: list[SelfContact] = []
         self.contact_capacity = 64  # contact rows per world (set_contacts)
         self.rayleigh_mass = 0.0
         self.rayleigh_stiffness = 0.0
@@ -373,6 +374,35 @@ class Scene:
         self.attachments.append(a)
         return a
 
+    def add_self_contact(self, body: Body, mu: float = 0.0, contact_distance: float | None = None) -> SelfContact:
+        """Let ``body`` touch itself: a surface node closer than ``contact_distance`` (m; default
+        a quarter of the body's mean surface edge) to a surface triangle of the same body becomes
+        a contact between the two (a normal row on four nodes, and two friction rows with
+        Coulomb coefficient ``mu``): a bending actuator whose chambers meet, a tentacle that
+        curls onto itself. Surfaces closer than twice that distance in the rest shape (a
+        corner's two faces, a thin wall's two sides) are neighbours, never in contact."""
+        self._own(body, "add_self_contact")
+        name = f"{body.name} (self)"
+        if any(s.body is body for s in self.self_contacts):
+            raise SceneError(f"scene '{self.name}': body '{body.name}' already touches itself (add_self_contact "
+                             "twice)")
+        if contact_distance is not None:
+            contact_distance = _finite(contact_distance, f"self-contact of '{body.name}': contact_distance")
+            if contact_distance <= 0:
+                raise SceneError(f"self-contact of '{body.name}': contact_distance must be > 0 m, got "
+                                 f"{contact_distance!r}")
+        mu = _finite(mu, f"self-contact of '{body.name}': friction coefficient mu")
+        if mu < 0:
+            raise SceneError(f"self-contact of '{body.name}': friction coefficient mu must be >= 0, got {mu!r}")
+        entry = SelfContact(name, body, mu, contact_distance)
+        self.self_contacts.append(entry)
+        return entry
+
+    @property
+    def touches(self) -> bool:
+        """Whether the scene has contacts to resolve: obstacles, rigid bodies or a self-contact."""
+        return bool(self.obstacles or self.rigid_bodies or self.self_contacts)
+
     def set_contacts(self, capacity: int) -> None:
         """At most ``capacity`` contacts at once in this scene (default 64); more are reported
         as an overflow (the nearest are not chosen: raise the capacity)."""
@@ -403,11 +433,11 @@ class Scene:
         if self.static and self.rigid_bodies:
             raise SceneError(f"scene '{self.name}': rigid body '{self.rigid_bodies[0].name}' needs a dynamic scene "
                              "(a quasi-static step has no inertia to hold a free solid): set static=False")
-        rough = [o.name for o in self.obstacles + self.rigid_bodies if o.mu > 0]
+        rough = [o.name for o in self.obstacles + self.rigid_bodies + self.self_contacts if o.mu > 0]
         if self.inverse and rough:
             raise SceneError(f"scene '{self.name}': the inverse model takes frictionless contacts only (its QPCC has "
-                             f"no friction rows), but obstacle or rigid body '{rough[0]}' has mu > 0; set "
-                             "mu=0.0 or use the direct model")
+                             f"no friction rows), but obstacle, rigid body or self-contact '{rough[0]}' has mu > 0; "
+                             "set mu=0.0 or use the direct model")
         if self.inverse and self.attachments:
             raise SceneError(f"scene '{self.name}': the inverse model does not take attachments (its QP has no "
                              f"bilateral rows), but attachment '{self.attachments[0].name}' is declared; use the "
