@@ -35,6 +35,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENES = [
     ("finger", "scenes/finger.py", {}),
     ("pneunet", "scenes/pneunet.py", {}),
+    # at 60 kPa its chambers meet across their gaps: self-contact, timed once they touch
+    ("pneunet_self_contact", "scenes/pneunet.py", {"pressure": 60e3, "ramp_time": 0.2, "self_contact": True}, 30),
     ("diamond", "scenes/diamond.py", {}),
     ("diamond_inverse", "scenes/diamond.py", {"mode": "inverse"}),
     ("diamond_inverse_softrobots_mesh", "scenes/diamond.py",  # SoftRobots.Inverse's own mesh: 4884 DOFs

@@ -35,7 +35,8 @@ from warpsoft.io.runner import build_scene
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ["scenes/finger.py", "scenes/trunk.py", "scenes/diamond.py", "scenes/finger.py:dt=0.5,mesh_size=0.005",
           "scenes/validation/column.py", "scenes/validation/hertz.py", "scenes/trunk.py:obstacles=True,period=1.0",
-          "scenes/grasper.py:dt=0.02,close=0.016", "scenes/validation/payload.py:swing=0.05"]
+          "scenes/grasper.py:dt=0.02,close=0.016", "scenes/validation/payload.py:swing=0.05",
+          "scenes/validation/stack.py"]
 RUNS = {
     "cpu_direct": ("cpu", "direct", {}),
     "cuda_pcg_graph": ("cuda", "pcg", {}),

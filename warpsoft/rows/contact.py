@@ -1,18 +1,19 @@
 """Contact rows: the gap between points and rigid solids (Signorini: ``delta = phi(x) >= 0``,
 ``lambda >= 0`` the normal force (N), one of them zero) and, when some solid of the world has
 friction, two tangential rows per contact: the slip ``t . (x - x_anchor)`` (m) from where the
-point was at the step's start, whose forces stay in Coulomb's cone ``|lambda_t| <= mu lambda_n``.
+point was at the step's start, whose forces stay in Coulomb's cone ``|lambda_t| <= mu
+lambda_n``.
 
-The points are the soft bodies' surface nodes and the rigid bodies' collision points; the solids
-are the obstacles (fixed or moving by a schedule) and the rigid bodies' own (a body's points
-meet every other body's solid, never its own), and, for a body that touches itself, its own
-surface triangles (``kernels/rows/self_contact.py``: rows on four nodes). A world has a fixed
-block of ``capacity`` contact slots (1 or 3 rows each); detection, at the start of a step,
-fills the first of them with the points then within their solid's contact distance of where it will be at the step's end (in
-candidate order: deterministic); a moving obstacle carries the anchors of its contacts, a rigid
-body keeps them in its frame; the rows are evaluated at every linearization of the step for
-those points, and the rest stay inert. More near points than slots is an overflow, reported.
-Kernels: ``kernels/rows/contact.py``.
+The points are the soft bodies' surface nodes and the rigid bodies' collision points; the
+solids are the obstacles (fixed or moving by a schedule) and the rigid bodies' own (a body's
+points meet every other body's solid, never its own), and, for a body that touches itself, its
+own surface triangles (``kernels/rows/self_contact.py``: rows on four nodes). A world has a
+fixed block of ``capacity`` contact slots (1 or 3 rows each); detection, at the start of a
+step, fills the first of them with the points then within their solid's contact distance of
+where it will be at the step's end (in candidate order: deterministic); a moving obstacle
+carries the anchors of its contacts, a rigid body keeps them in its frame; the rows are
+evaluated at every linearization of the step for those points, and the rest stay inert. More
+near points than slots is an overflow, reported. Kernels: ``kernels/rows/contact.py``.
 """
 
 from __future__ import annotations
