@@ -14,8 +14,8 @@ body's centre of mass); an unused slot's row is inert (no entry, ``delta = 0``).
 
 import warp as wp
 
-from .closest import triangle_closest
-from .self_contact import self_gap, self_nearest
+from .closest import triangle_closest, triangle_nearest
+from .self_contact import self_gap, self_nearest, triangle_point
 
 FLOOR = wp.constant(0)
 BALL = wp.constant(1)
@@ -342,10 +342,10 @@ def assign_slots(
                 if obstacles.kind[o] == SELF:  # the node's offset from the triangle's nearest point
                     t = cand_tri[c]
                     tri = obstacles.tri_nodes[t]
-                    gap, n, w3, dist = self_gap(x, q[tri[0]], q[tri[1]], q[tri[2]])
+                    w3, inside = triangle_nearest(x, q[tri[0]], q[tri[1]], q[tri[2]])
                     slot_tri[slot_start[w] + k] = t
                     slot_weights[slot_start[w] + k] = w3
-                    anchor[slot_start[w] + k] = x - (w3[0] * q[tri[0]] + w3[1] * q[tri[1]] + w3[2] * q[tri[2]])
+                    anchor[slot_start[w] + k] = x - triangle_point(q, tri, w3)
                 elif b >= 0:  # in the owner's frame
                     anchor[slot_start[w] + k] = wp.quat_rotate_inv(bodies.r[b], x - bodies.p[b])
                 else:  # the point's place now, carried as the obstacle moves over the step
@@ -425,10 +425,9 @@ def contact_rows(
             r_point = x - bodies.p[pb]
         if obstacles.kind[o] == SELF:  # against the triangle: gap from its nearest point, slip from the anchor's
             tri = obstacles.tri_nodes[slot_tri[k]]
-            xa, xb, xc = q[tri[0]], q[tri[1]], q[tri[2]]
-            phi, n, w_now, dist = self_gap(x, xa, xb, xc)
+            phi, n, w_now, dist = self_gap(x, q[tri[0]], q[tri[1]], q[tri[2]])
             w_anchor = slot_weights[k]
-            slip = x - (w_anchor[0] * xa + w_anchor[1] * xb + w_anchor[2] * xc) - anchor[k]
+            slip = x - triangle_point(q, tri, w_anchor) - anchor[k]
         else:
             a = anchor[k]
             if ob >= 0:

@@ -37,6 +37,12 @@ def surface_normals(q: wp.array(dtype=wp.vec3d), tri_nodes: wp.array(dtype=wp.ve
 
 
 @wp.func
+def triangle_point(q: wp.array(dtype=wp.vec3d), tri: wp.vec3i, w: wp.vec3d) -> wp.vec3d:
+    """The point of triangle ``tri`` (node ids into ``q``) with barycentric weights ``w`` (m)."""
+    return w[0] * q[tri[0]] + w[1] * q[tri[1]] + w[2] * q[tri[2]]
+
+
+@wp.func
 def self_gap(x: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
     """Signed gap (m) of point ``x`` to triangle ``abc`` (outward: counter-clockwise seen from
     outside) along its outward face normal ``n``, from the triangle's nearest point (negative
@@ -53,24 +59,23 @@ def self_gap(x: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
 def self_nearest(mesh: wp.uint64, tri0: int, tri_nodes: wp.array(dtype=wp.vec3i), q: wp.array(dtype=wp.vec3d),
                  v: wp.array(dtype=wp.vec3d), normal: wp.array(dtype=wp.vec3d), rest: wp.array(dtype=wp.vec3d),
                  node: int, reach: wp.float64, apart: wp.float64, h: wp.float64):
-    """The surface triangle (index into ``tri_nodes``; -1 for none) nearest to surface node
-    ``node`` among its body's others that it may touch this step, and the distance to it (m).
+    """The surface triangle (index into ``tri_nodes``; -1 for none) nearest to surface node ``node`` among
+    its body's others that it may touch this step, and the distance to it (m).
 
-    Others: not a triangle it is a corner of, nor one within ``apart`` (m) of it in the rest
-    shape ``rest`` (a neighbour: the faces at a corner, a thin wall's two sides). Facing: the
-    surface at the node (``normal``, from :func:`surface_normals`) and the triangle face each
-    other (a node on a face's rim is not in contact with the face beside it in the same plane,
-    but with the one it presses on). May touch: its
-    signed gap is above ``-reach`` (a node deeper behind a triangle is across the body, not in
-    contact) and below ``reach`` plus what the node and the triangle can close in the step
-    (``h`` (s) times their speeds ``v``, m/s), so that fast surfaces are caught before they
-    pass through each other; and the node lies over the face, or within ``reach`` of it along
-    the face (beyond a convex edge, below the plane's extension, is outside the body).
+    Others: not a triangle it is a corner of, nor one within ``apart`` (m) of it in the rest shape
+    ``rest`` (a neighbour: the faces at a corner, a thin wall's two sides). Facing: the surface at
+    the node (``normal``, from :func:`surface_normals`) and the triangle face each other (a node on
+    a face's rim is not in contact with the face beside it in the same plane, but with the one it
+    presses on). May touch: its signed gap is above ``-reach`` (a node deeper behind a triangle is
+    across the body, not in contact) and below ``reach`` plus what the node and the triangle can
+    close in the step (``h`` (s) times their speeds ``v``, m/s), so that fast surfaces are caught
+    before they pass through each other; and the node lies over the face, or within ``reach`` of it
+    along the face (beyond a convex edge, below the plane's extension, is outside the body).
 
-    Node to node (the triangle's nearest point is at its corner ``k``, within :data:`CORNER`),
-    the pair is kept by the lower node id alone: ``k``'s own row would be nearly the same row,
-    and two such rows make the contact problem degenerate. The BVH is searched within ``reach +
-    2 h |v_node|`` of the node: a fast triangle is caught by its own nodes' searches."""
+    Node to node (the triangle's nearest point is at its corner ``k``, within :data:`CORNER`), the
+    pair is kept by the lower node id alone: ``k``'s own row would be nearly the same row, and two
+    such rows make the contact problem degenerate. The BVH is searched within ``reach + 2 h
+    |v_node|`` of the node: a fast triangle is caught by its own nodes' searches."""
     x = q[node]
     speed = wp.length(v[node])
     pad = wp.float32(reach + wp.float64(2.0) * h * speed) * wp.float32(1.01) + wp.float32(1e-7)

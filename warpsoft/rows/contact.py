@@ -189,6 +189,7 @@ class ContactRows(RowKind):
         self.points.local = f64(np.concatenate(cand["local"]), wp.vec3d)
         self.points.obstacle = self.cand_obstacle = i32(np.concatenate(cand["obstacle"]))
         self._no_bodies = None  # the Bodies struct of a model without rigid bodies (inert arrays)
+        self._still = None  # the nodes' velocities when the rows are evaluated without a State (0)
         self._bodies = {}  # a State's Bodies struct, by the State
         self.world_cand_start = i32(cand_start)
         self.capacity = i32(capacity)  # contact slots per world
@@ -230,7 +231,7 @@ class ContactRows(RowKind):
         """The nodes' velocities (m/s) of the State the rows are evaluated at (0 without one)."""
         state = table.bodies
         if state is None or getattr(state, "v", None) is None:
-            if getattr(self, "_still", None) is None:
+            if self._still is None:
                 self._still = wp.zeros(self.model.num_nodes, dtype=wp.vec3d, device=self.model.device)
             return self._still
         return state.v
