@@ -27,7 +27,6 @@ from warpsoft.kernels.rows import contact as kernels
 from warpsoft.kernels.rows import self_contact as self_kernels
 
 from ..scene import obstacles as ob
-from ..scene.obstacles import SelfContact
 from .kind import RowKind
 
 RIGID_REACH = 0.02  # default contact distance for a rigid body's points: this share of its size (m/m)
@@ -88,7 +87,7 @@ class ContactRows(RowKind):
                 ids = att.nodes + model.body_info(att.body.name, w).node_start
                 held.setdefault(rigid_index[(w, id(att.rigid))], []).extend(ids.tolist())
 
-        surfaces = []  # the self-contact bodies' surfaces: (world, BodyInfo)
+        surfaces = {}  # the self-contact records' bodies: record -> BodyInfo
 
         def add(entry, pack, owner, reach, mu, nodes=None, body=None):  # one record and its candidates
             k, pa, pb, r, R = pack
@@ -146,7 +145,7 @@ class ContactRows(RowKind):
                     reach = sc.contact_distance or 0.25 * mean_surface_edge(sc.body.mesh)
                     pack = (kernels.SELF, np.zeros(3), np.zeros(3), 2.0 * reach, np.eye(3))  # radius: apart
                     add(sc, pack, -1, reach, sc.mu, nodes=np.unique(info.surface))
-                    surfaces.append(info)
+                    surfaces[len(self.records) - 1] = info
                 rps = p.item.rows_per_contact
                 capacity[w], rows_per_slot[w] = p.item.capacity, rps
                 contact_row[w] = p.first_row
@@ -171,8 +170,7 @@ class ContactRows(RowKind):
         self.rot_loc = f64(rec["rot_loc"], wp.mat33d)
         self.owned = np.flatnonzero(np.array(rec["owner"]) >= 0)
         self.owned_d = i32(self.owned if len(self.owned) else [0])
-        self._meshes(d)
-        self._surfaces(surfaces, d)
+        self._meshes(d, surfaces)
         # how a point fixed to each obstacle moves over the step: x -> step_rot x + step_shift
         n_rec = len(rec["kind"])
         self.step_rot = wp.array(np.tile(np.eye(3), (n_rec, 1, 1)), dtype=wp.mat33d, device=d)
@@ -243,13 +241,33 @@ class ContactRows(RowKind):
                       inputs=[self.owned_d, self.owner, self.a_loc, self.b_loc, self.rot_loc, bodies, self.obstacles],
                       device=self.model.device)
 
-    def _meshes(self, device) -> None:
-        """Each mesh obstacle's BVH (``wp.Mesh``, single precision, kept alive here) and its
-        triangles' vertices in double; analytic records get id 0 and no triangles."""
+    def _meshes(self, device, surfaces: dict) -> None:
+        """The records' triangles and BVHs (``wp.Mesh``, single precision, kept alive here):
+        a mesh obstacle's, its vertices in double in ``tri_xyz``; a self-contact's, its body's
+        surface (``surfaces``: record -> BodyInfo), its triangles' global node ids in
+        ``tri_nodes``, the BVH's vertices moved to the nodes and refitted by :meth:`detect`.
+        ``tri0`` is each record's first triangle in its table; analytic records get id 0."""
         self.bvh, ids, tri0, xyz, made = [], [], [], [], {}
-        count = 0
-        for entry in self.records:
-            shape = None if isinstance(entry, SelfContact) else entry.shape
+        self.surface_bvh, tris, nodes = [], [], []
+        self.surface_points = wp.zeros(max(sum(i.node_count for i in surfaces.values()), 1), dtype=wp.vec3,
+                                       device=device)
+        count = start = surface_count = 0
+        for o, entry in enumerate(self.records):
+            if o in surfaces:  # a body's own surface
+                info = surfaces[o]
+                view = self.surface_points[start:start + info.node_count]
+                view.assign(self.model.rest_np[info.node_start:info.node_start + info.node_count].astype(np.float32))
+                local = (info.surface - info.node_start).astype(np.int32)
+                self.surface_bvh.append(wp.Mesh(points=view, indices=wp.array(local.ravel(), dtype=wp.int32,
+                                                                               device=device)))
+                ids.append(self.surface_bvh[-1].id)
+                tri0.append(surface_count)
+                tris.append(info.surface)
+                nodes.append(np.arange(info.node_start, info.node_start + info.node_count))
+                start += info.node_count
+                surface_count += len(info.surface)
+                continue
+            shape = entry.shape
             if not isinstance(shape, ob.Mesh):
                 ids.append(0)
                 tri0.append(0)
@@ -266,35 +284,9 @@ class ContactRows(RowKind):
         self.mesh = wp.array(np.array(ids, dtype=np.uint64), dtype=wp.uint64, device=device)
         self.tri0 = wp.array(np.array(tri0, dtype=np.int32), dtype=wp.int32, device=device)
         self.tri_xyz = wp.array(np.concatenate(xyz) if xyz else np.zeros((1, 3, 3)), dtype=wp.vec3d, device=device)
-
-    def _surfaces(self, surfaces: list, device) -> None:
-        """Each self-contact body's surface: its triangles (global node ids, in ``tri_nodes``
-        from the record's ``tri0``) and a BVH over them (``wp.Mesh``, single precision) whose
-        vertices :meth:`detect` moves to the nodes and refits."""
-        self.surface_bvh, tris, nodes = [], [], []
-        self.surface_points = wp.zeros(max(sum(i.node_count for i in surfaces), 1), dtype=wp.vec3, device=device)
-        start = count = 0
-        tri0 = self.tri0.numpy()
-        selfs = [o for o, e in enumerate(self.records) if isinstance(e, SelfContact)]
-        for o, info in zip(selfs, surfaces, strict=True):
-            view = self.surface_points[start:start + info.node_count]
-            view.assign(self.model.rest_np[info.node_start:info.node_start + info.node_count].astype(np.float32))
-            local = (info.surface - info.node_start).astype(np.int32)
-            self.surface_bvh.append(wp.Mesh(points=view, indices=wp.array(local.ravel(), dtype=wp.int32,
-                                                                           device=device)))
-            tri0[o] = count
-            tris.append(info.surface)
-            nodes.append(np.arange(info.node_start, info.node_start + info.node_count))
-            start += info.node_count
-            count += len(info.surface)
-        if selfs:
-            mesh = self.mesh.numpy()
-            mesh[selfs] = [bvh.id for bvh in self.surface_bvh]
-            self.mesh.assign(mesh)
-            self.tri0.assign(tri0)
         self.tri_nodes = wp.array(np.concatenate(tris).astype(np.int32) if tris else np.zeros((1, 3), np.int32),
                                   dtype=wp.vec3i, device=device)
-        self.surface_normal = wp.zeros(self.model.num_nodes if selfs else 1, dtype=wp.vec3d, device=device)
+        self.surface_normal = wp.zeros(self.model.num_nodes if tris else 1, dtype=wp.vec3d, device=device)
         self.surface_node = wp.array(np.concatenate(nodes).astype(np.int32) if nodes else np.zeros(1, np.int32),
                                      dtype=wp.int32, device=device)
 
