@@ -92,13 +92,14 @@ def check_output(path: str | Path | None, what: str, suffixes: tuple[str, ...] |
         raise SceneError(f"{what} {str(path)!r}: the extension must be one of {', '.join(suffixes)}")
     if path.is_dir():
         raise SceneError(f"{what} {str(path)!r} is a folder, not a file")
-    try:  # the real test: create the folders and open the file for appending
+    try:  # the real test: create the folders and open the file (or, when it is not there yet, a
+        # sibling: an empty file at the path itself would be read, half-made, by whoever watches it)
         path.parent.mkdir(parents=True, exist_ok=True)
-        existed = path.exists()
-        with open(path, "a"):
+        probe = path if path.exists() else path.with_name(path.name + ".probe")
+        with open(probe, "a"):
             pass
-        if not existed:
-            path.unlink()
+        if probe != path:
+            probe.unlink()
     except OSError as exc:
         raise SceneError(f"{what} {str(path)!r} cannot be written ({exc.strerror or exc}); nothing was run") from None
     return path
