@@ -84,12 +84,12 @@ def test_a_point_on_a_mesh_gets_its_face_normal_not_rounding_noise():
     assert all(min(np.linalg.norm(nn - f) for f in faces) < 1e-12 for nn in n.numpy())
 
 
-def block(gravity=(0.0, 0.0, -G), capacity=64, damping=1.0):
+def block(gravity=(0.0, 0.0, -G), capacity=64, damping=1.0, mu=0.0):
     scene = ws.Scene("block", gravity=gravity, dt=0.005)
     body = scene.add_body("block", ws.box_grid((-0.01, -0.01, 0.001), (0.01, 0.01, 0.011), (5, 5, 3)),
                           ws.Material(1e5, 0.3, 1000.0))
     scene.set_damping(damping, 0.0)
-    scene.add_obstacle("floor", ws.obstacles.Floor())
+    scene.add_obstacle("floor", ws.obstacles.Floor(), mu=mu)
     scene.set_contacts(capacity)
     scene.add_probe("top", (0.0, 0.0, 0.011))
     scene.add_probe("bottom", (0.0, 0.0, 0.001))
@@ -462,3 +462,25 @@ def test_the_octoleg_folds_over_its_cylinder_onto_the_floor(scene_module):
     assert min(cylinder.distance(q).min(), floor.distance(q).min()) > -1e-9
     assert sim.probe_positions()["tip"][2] == pytest.approx(-0.03, abs=2e-3)
     assert stats.worlds[0].actuator_lambda["cable"] == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("branches", [False, True])
+def test_the_pcg_solving_only_the_contact_columns_in_use_steps_as_the_direct_solver(branches):
+    """A block dropped with friction on the floor (36 contacts x 3 rows in use of 64 slots): the
+    PCG, which solves only the compliance columns of the force rows in use (the count from the
+    detection, on the device), follows the direct solver's trajectory. ``branches``: the way CUDA
+    bounds it (the smallest captured size that holds the count), run here on the CPU device."""
+    def run(solver):
+        scene, _ = block(gravity=(0.3 * G, 0.0, -G), mu=0.5)
+        sim = ws.Simulator(scene, solver=solver, tolerance=1e-12)
+        if solver == "pcg":
+            sim.solver.branches = branches
+        for _ in range(40):
+            stats = sim.step()
+        return sim.state.positions(), stats, sim
+
+    ref, ref_stats, _ = run("direct")
+    got, stats, sim = run("pcg")
+    assert ref_stats.contacts == stats.contacts == 36 and stats.converged
+    assert int(sim.rows.force_columns.numpy()[0]) == 108  # of the 192 columns
+    assert np.abs(got - ref).max() < 1e-9 * 0.01

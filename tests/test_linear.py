@@ -6,7 +6,7 @@ import scipy.sparse.linalg as spla
 import warp as wp
 
 import warpsoft as ws
-from warpsoft.linear import SparseDirect, WarpedFactor
+from warpsoft.linear import PCG, SparseDirect, WarpedFactor
 
 RUBBER = ws.Material(1e6, 0.45, 1000.0)
 
@@ -162,3 +162,68 @@ def test_dense_products_apply_the_host_factor_to_every_column(product, width):
         z = wp.zeros_like(r)
         pre.apply(r, z)
         assert np.abs(z.numpy() - want).max() < tol * np.abs(want).max(), precision
+
+
+def test_dense_products_serve_fewer_columns_than_they_were_built_for():
+    """A solve bounded to its right-hand sides in use applies the preconditioner to the first
+    ``k`` columns only: each dense product, compiled for that ``k``, equals the host factor on them."""
+    sim = ws.Simulator(bent_beam(), solver="direct")
+    for _ in range(3):
+        sim.step()
+    r = wp.array(np.random.default_rng(6).standard_normal((2, sim.model.num_nodes, 3)), dtype=wp.vec3d)
+    host = WarpedFactor(sim.operator, 5, "host")
+    host.prepare()
+    host.refresh()
+    z_host = wp.zeros_like(r)
+    host.apply(r, z_host)
+    want = z_host.numpy()
+    for product in ("stream", "tiles"):
+        pre = WarpedFactor(sim.operator, 5, "dense", "float64", product=product, stream=(16, 2, 2))
+        pre.prepare()
+        pre.refresh()
+        z = wp.zeros_like(r)
+        pre.apply(r, z)
+        assert np.abs(z.numpy() - want).max() < 1e-9 * np.abs(want).max(), product
+
+
+@pytest.mark.parametrize("branches", [False, True])
+def test_a_bounded_pcg_solves_the_columns_in_use_and_leaves_the_others(branches):
+    """``PCG.bound``: with 1 + count[0] = 3 right-hand sides in use of 12, those are solved as the
+    direct solver solves them, the others keep their values and read as converged. Both ways of
+    bounding run here: the count read on the host (CPU device: exactly 3 solved) and the size
+    branches CUDA takes (``capture_if`` on a device count, which on the CPU device reads the
+    condition: the smallest size holding 3, 8, is solved)."""
+    sim = ws.Simulator(bent_beam(), solver="pcg", tolerance=1e-12)
+    for _ in range(3):
+        sim.step()
+    n = sim.model.num_nodes
+    solver = PCG(sim.operator, WarpedFactor(sim.operator, 12, "host"), 12, tolerance=1e-12)
+    solver.branches = branches
+    solver.prepare()
+    count = wp.array([2], dtype=wp.int32)
+    solver.bound(count, 1)
+    rng = np.random.default_rng(7)
+    b = rng.standard_normal((12, n, 3)) * sim.model.mask_np
+    x = wp.array(np.full((12, n, 3), 7.0), dtype=wp.vec3d)
+    res = solver.solve(wp.array(b, dtype=wp.vec3d), x)
+    direct = SparseDirect(sim.operator)
+    direct.prepare()
+    solved = 8 if branches else 3
+    want = direct.solve_array(b[:solved])
+    got = x.numpy()
+    assert res.converged and res.iterations > 1
+    assert np.abs(got[:solved] - want).max() < 1e-9 * np.abs(want).max()
+    assert np.all(got[solved:] == 7.0)  # never touched
+    count.fill_(11)  # now every right-hand side: the largest size
+    res = solver.solve(wp.array(b, dtype=wp.vec3d), x)
+    assert res.converged
+    assert np.abs(x.numpy() - direct.solve_array(b)).max() < 1e-9 * np.abs(want).max()
+
+
+def test_pick_size_takes_the_smallest_size_that_holds_the_count():
+    from warpsoft.kernels.linear.pcg import pick_size
+    sizes = wp.array([8, 32, 128, 289], dtype=wp.int32)
+    branch = wp.zeros(4, dtype=wp.int32)
+    for count, chosen in ((0, 0), (7, 0), (8, 1), (31, 1), (100, 2), (127, 2), (128, 3), (288, 3), (400, 3)):
+        wp.launch(pick_size, 1, inputs=[wp.array([count], dtype=wp.int32), 1, sizes], outputs=[branch])
+        assert branch.numpy().tolist() == [int(j == chosen) for j in range(4)], count

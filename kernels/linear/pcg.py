@@ -203,3 +203,17 @@ def pcg_scalars(scal: wp.array3d(dtype=wp.float64), tolerance: wp.float64, max_i
     elif scal[c, w, DONE] == wp.float64(0.0):
         scal[c, w, DONE] = wp.float64(1.0)
     wp.atomic_max(info, ITERATIONS, its)
+
+
+@wp.kernel
+def pick_size(count: wp.array(dtype=wp.int32), offset: int, sizes: wp.array(dtype=wp.int32),
+              branch: wp.array(dtype=wp.int32)):
+    """One thread: ``branch[j] = 1`` for the smallest ``sizes[j]`` (ascending) that holds
+    ``offset + count[0]`` right-hand sides (the last one when none does), 0 for the others."""
+    need = offset + count[0]
+    chosen = sizes.shape[0] - 1
+    for j in range(sizes.shape[0] - 1, -1, -1):
+        branch[j] = 0
+        if sizes[j] >= need:
+            chosen = j
+    branch[chosen] = 1

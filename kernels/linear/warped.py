@@ -142,6 +142,7 @@ def dense_product(columns: int, dtype, tile_m: int = 32, tile_k: int = 64, split
 # scheduling).
 
 _streams = {}
+_wide_types = {}
 
 
 def stream_kernels(columns: int, dtype, segments: int = 32, unroll: int = 4, width: int = 1):
@@ -161,7 +162,7 @@ def stream_kernels(columns: int, dtype, segments: int = 32, unroll: int = 4, wid
         return _streams[key]
     K, S, UN, W = columns, segments, unroll, width
     G = 16 if S % 16 == 0 else (8 if S % 8 == 0 else 1)  # partials added G at a time: their loads go out together
-    wide = wp.types.vector(length=W, dtype=dtype)
+    wide = _wide_types.setdefault((W, dtype), wp.types.vector(length=W, dtype=dtype))  # one type for every k
     sums = wp.types.matrix(shape=(W, K), dtype=dtype)
 
     @wp.kernel(module="unique")

@@ -45,11 +45,15 @@ def rows_times_columns(
     h_coef: wp.array(dtype=wp.vec3d),
     x: wp.array2d(dtype=wp.vec3d),
     scale: wp.float64,
+    columns: wp.array(dtype=wp.int32),
     w: wp.array2d(dtype=wp.float64),
 ):
-    """``w[row, c] += scale * H[row] . x[c]`` (launched over entries x columns): ``W = s H X``. An
-    inert entry (0: an unused contact slot's) adds nothing and is skipped."""
+    """``w[row, c] += scale * H[row] . x[c]`` (launched over entries x columns) for the columns
+    ``c < columns[0]`` in use: ``W = s H X``. An inert entry (0: an unused contact slot's) adds
+    nothing and is skipped."""
     k, c = wp.tid()
+    if c >= columns[0]:
+        return
     coef = h_coef[k]
     if coef[0] != wp.float64(0.0) or coef[1] != wp.float64(0.0) or coef[2] != wp.float64(0.0):
         wp.atomic_add(w, h_row[k], c, scale * wp.dot(coef, x[c, h_node[k]]))
@@ -109,3 +113,13 @@ def add_motion(a: wp.array(dtype=wp.vec3d), b: wp.array(dtype=wp.vec3d), out: wp
     """``out = a + b`` (m): the free correction plus the rows' (solved from their forces)."""
     i = wp.tid()
     out[i] = a[i] + b[i]
+
+
+@wp.kernel
+def most_force_rows(world_force_rows: wp.array(dtype=wp.int32), columns: wp.array(dtype=wp.int32)):
+    """One thread: ``columns[0]`` = the most force rows in use of any world (the compliance
+    columns in use)."""
+    most = wp.int32(0)
+    for w in range(world_force_rows.shape[0]):
+        most = wp.max(most, world_force_rows[w])
+    columns[0] = most

@@ -6,6 +6,11 @@ in ``scal``, and the kernel that rolls them over also sets the device flag that
 (start, loop, stop) is captured once as a graph with a conditional node and replayed; the host
 reads the iteration count and the residuals once, after the solve. On the CPU device the same
 code runs the loop directly.
+
+Only the right-hand sides in use are solved when the caller says how many are (:meth:`PCG.bound`,
+a count on the device: the contact slots a detection filled). On CUDA the solve is captured
+once per size in :data:`SIZES` up to ``k`` (each a conditional branch, the smallest that holds
+the count runs); on the CPU device the count is read and the solve takes exactly that many.
 """
 
 from __future__ import annotations
@@ -20,6 +25,8 @@ from warpsoft.kernels.linear import cg as slots
 from warpsoft.kernels.linear import pcg as kernels
 
 from .operator import SystemOperator
+
+SIZES = (8, 32, 128)  # right-hand sides a bounded CUDA solve is captured for (then every k)
 
 
 @dataclass
@@ -63,6 +70,17 @@ class PCG:
         self.info = wp.zeros(2, dtype=wp.int32, device=m.device)
         self.active = wp.zeros(1, dtype=wp.int32, device=m.device)
         self._graphs = {}
+        self.count, self.offset = None, 0  # right-hand sides in use: offset + count[0] (None: all)
+        self.sizes = [s for s in SIZES if s < shape[0]] + [shape[0]]
+        self.branch = wp.zeros(len(self.sizes), dtype=wp.int32, device=m.device)
+        self._sizes: dict[tuple, wp.array] = {}
+        self.branches = m.device.is_cuda  # a bounded solve by size branches; else the count is read
+
+    def bound(self, count: wp.array, offset: int = 0) -> None:
+        """Solve only the right-hand sides ``c < offset + count[0]`` (``count`` an int32 device array
+        of one element, updated on the device between solves); the others keep their values and
+        their CG scalars read as converged. ``offset``: the right-hand sides always in use."""
+        self.count, self.offset = count, int(offset)
 
     def prepare(self) -> None:
         """Per linearization: update the preconditioner."""
@@ -122,33 +140,52 @@ class PCG:
         return SolveResult(its, residual, residual <= self.tolerance, world_its, rel)
 
     def _run(self, b: wp.array, x: wp.array) -> None:
-        m, d, shape = self.op.model, self.op.model.device, self.r.shape
-        k, n = shape
-        wp.launch(slots.project, shape, inputs=[m.mask], outputs=[x], device=d)
-        self.op.apply(x, self.ap)
-        self.scal.zero_()
+        d = self.op.model.device
+        k = min(b.shape[0], self.r.shape[0])
+        self.scal.zero_()  # right-hand sides left out read as converged (b = 0)
         self.info.zero_()
+        if self.count is None or k == 1:
+            self._columns(b, x, k)
+        elif not self.branches:  # (the CPU device: the count is host memory)
+            self._columns(b, x, min(k, self.offset + int(self.count.numpy()[0])))
+        else:
+            sizes = tuple(s for s in self.sizes if s < k) + (k,)
+            if sizes not in self._sizes:
+                self._sizes[sizes] = wp.array(sizes, dtype=wp.int32, device=d)
+            wp.launch(kernels.pick_size, 1, inputs=[self.count, self.offset, self._sizes[sizes]],
+                      outputs=[self.branch], device=d)
+            for j, size in enumerate(sizes):  # one branch runs: the smallest size that holds the count
+                wp.capture_if(self.branch[j:j + 1], self._columns, b=b, x=x, k=size)
+
+    def _columns(self, b: wp.array, x: wp.array, k: int) -> None:
+        """The solve of the first ``k`` right-hand sides."""
+        m, d = self.op.model, self.op.model.device
+        n = m.num_nodes
+        b, x = b[:k], x[:k]
+        r, z, p, ap, scal = self.r[:k], self.z[:k], self.p[:k], self.ap[:k], self.scal[:k]
+        wp.launch(slots.project, (k, n), inputs=[m.mask], outputs=[x], device=d)
+        self.op.apply(x, ap)
         self.active.zero_()
-        kernels.launch_nodes(kernels.pcg_residual, k, n, [b, self.ap, m.mask, self.r, m.node_world, self.scal], d)
-        self.precond.apply(self.r, self.z)
-        kernels.launch_nodes(kernels.pcg_begin, k, n, [self.r, self.z, x, self.p, m.node_world, self.scal], d)
-        self._scalars(0)
+        kernels.launch_nodes(kernels.pcg_residual, k, n, [b, ap, m.mask, r, m.node_world, scal], d)
+        self.precond.apply(r, z)
+        kernels.launch_nodes(kernels.pcg_begin, k, n, [r, z, x, p, m.node_world, scal], d)
+        self._scalars(scal, 0)
         wp.capture_while(self.active, self._iteration, x=x)
 
     def _iteration(self, x: wp.array) -> None:
-        """One iteration: ``A p``, ``alpha``, ``x``, ``r``, ``z = P^-1 r``, ``beta``, ``p``, stop test."""
+        """One iteration: ``A p``, ``alpha``, ``x``, ``r``, ``z = P^-1 r``, ``beta``, ``p``, stop test
+        (over the right-hand sides of ``x``)."""
         m, d = self.op.model, self.op.model.device
-        k, n = self.r.shape
-        self.op.apply(self.p, self.ap)
-        kernels.launch_nodes(kernels.pcg_curvature, k, n, [self.p, self.ap, m.mask, m.node_world, self.scal], d)
-        kernels.launch_nodes(kernels.pcg_update, k, n, [x, self.r, self.p, self.ap, m.node_world, self.scal], d)
-        self.precond.apply(self.r, self.z)
-        kernels.launch_nodes(kernels.pcg_rz, k, n, [self.r, self.z, m.node_world, self.scal], d)
-        wp.launch(kernels.pcg_direction, (k, n), inputs=[self.z, self.p, m.node_world, self.scal],
-                  outputs=[self.active], device=d)
-        self._scalars(1)
+        k, n = x.shape
+        r, z, p, ap, scal = self.r[:k], self.z[:k], self.p[:k], self.ap[:k], self.scal[:k]
+        self.op.apply(p, ap)
+        kernels.launch_nodes(kernels.pcg_curvature, k, n, [p, ap, m.mask, m.node_world, scal], d)
+        kernels.launch_nodes(kernels.pcg_update, k, n, [x, r, p, ap, m.node_world, scal], d)
+        self.precond.apply(r, z)
+        kernels.launch_nodes(kernels.pcg_rz, k, n, [r, z, m.node_world, scal], d)
+        wp.launch(kernels.pcg_direction, (k, n), inputs=[z, p, m.node_world, scal], outputs=[self.active], device=d)
+        self._scalars(scal, 1)
 
-    def _scalars(self, advance: int) -> None:
-        wp.launch(kernels.pcg_scalars, self.scal.shape[:2],
-                  inputs=[self.scal, self.tolerance, self.max_iterations, advance], outputs=[self.info, self.active],
-                  device=self.op.model.device)
+    def _scalars(self, scal: wp.array, advance: int) -> None:
+        wp.launch(kernels.pcg_scalars, scal.shape[:2], inputs=[scal, self.tolerance, self.max_iterations, advance],
+                  outputs=[self.info, self.active], device=self.op.model.device)

@@ -88,8 +88,6 @@ class WarpedFactor:
                 self.padded = int(-(-3 * n // step) * step)
                 self.u = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
                 self.y = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
-                self._product = kernels.dense_product(self.columns, self.dtype, self.tiles[0], self.tiles[1],
-                                                      self.tiles[3])
                 self._rotate_in, self._rotate_out = kernels.flat_rotations(self.dtype)
             else:
                 segments, unroll, width = (*(int(t) for t in stream), 1)[:3]
@@ -97,7 +95,7 @@ class WarpedFactor:
                 step = np.lcm(segments * unroll, width)
                 self.padded = int(-(-3 * n // step) * step)
                 self.segment = self.padded // segments
-                self._wide, *self._stream = kernels.stream_kernels(self.columns, self.dtype, segments, unroll, width)
+                self._wide = kernels.stream_kernels(self.columns, self.dtype, segments, unroll, width)[0]
                 self.u = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
                 self.partials = wp.zeros((segments, self.columns, self.padded), dtype=self.dtype, device=d)
 
@@ -153,11 +151,13 @@ class WarpedFactor:
             self._stale = True
 
     def apply(self, r: wp.array, z: wp.array) -> None:
-        """``z = Q A_f^-1 Q^T r`` for ``(k, n)`` vec3d arrays, fixed DOFs 0."""
+        """``z = Q A_f^-1 Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns`` (the first ``k`` of
+        the solves it serves; the dense products are compiled per ``k``), fixed DOFs 0."""
         m, d = self.op.model, self.op.model.device
         shape = r.shape
+        k = shape[0]
         if self.mode == "dense" and self.product == "stream":
-            rotate_in, partial_product, rotate_out = self._stream
+            _, rotate_in, partial_product, rotate_out = kernels.stream_kernels(k, self.dtype, *self.stream)
             wp.launch(rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
             wp.launch(partial_product, (self.stream[0], self.padded // self.stream[2]),
                       inputs=[self._inverse_wide, self.u, self.segment], outputs=[self.partials], device=d)
@@ -167,10 +167,12 @@ class WarpedFactor:
             wp.launch(self._rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
             if self.tiles[3] > 1:
                 self.y.zero_()  # the splits add into it
-            wp.launch_tiled(self._product, dim=[self.padded // self.tiles[0], self.tiles[3]],
+            product = kernels.dense_product(k, self.dtype, self.tiles[0], self.tiles[1], self.tiles[3])
+            wp.launch_tiled(product, dim=[self.padded // self.tiles[0], self.tiles[3]],
                             inputs=[self.inverse, self.u], outputs=[self.y], block_dim=self.tiles[2], device=d)
             wp.launch(self._rotate_out, shape, inputs=[self.y, self.q_rot, m.mask], outputs=[z], device=d)
             return
-        wp.launch(kernels.rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
-        self.y.assign(solve_dofs(self.factor, self.u.numpy().reshape(shape[0], -1)).reshape(shape[0], -1, 3))
-        wp.launch(kernels.rotate_out, shape, inputs=[self.y, self.q_rot, m.mask], outputs=[z], device=d)
+        u, y = self.u[:k], self.y[:k]
+        wp.launch(kernels.rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[u], device=d)
+        y.assign(solve_dofs(self.factor, u.numpy().reshape(k, -1)).reshape(k, -1, 3))
+        wp.launch(kernels.rotate_out, shape, inputs=[y, self.q_rot, m.mask], outputs=[z], device=d)

@@ -86,6 +86,7 @@ class Rows:
         self.world_actuators_d = wp.array(self.world_actuators, dtype=wp.int32, device=d)
         self.world_held_d = wp.array(held, dtype=wp.int32, device=d)
         self.world_force_rows = wp.array(held, dtype=wp.int32, device=d)  # no contact yet
+        self.force_columns = wp.array([held.max(initial=0)], dtype=wp.int32, device=d)  # columns in use
 
         # mapped points, kind by kind (a kind's points are contiguous), each located in its elements
         nodes, weights, point = [], [], 0
@@ -186,6 +187,8 @@ class Rows:
         if contact is not None:
             self.bodies = bodies
             contact.detect(self, q, lam, friction)
+            wp.launch(kernels.most_force_rows, 1, inputs=[self.world_force_rows], outputs=[self.force_columns],
+                      device=self.device)
 
     @property
     def effector_row_slice(self) -> slice:
@@ -225,15 +228,17 @@ class Rows:
 
     def compliance(self, x: wp.array, scale: float) -> None:
         """``W = scale H X`` (device) against the actuator columns ``X``; ``(rows, columns)``, row
-        ``r`` against its own world's columns. On the CPU device only the columns of force rows
-        in use are formed (the count is read in place; a cavity's thousands of entries against
-        every contact slot's column cost 20 ms on the pneunet); a CUDA graph forms them all."""
+        ``r`` against its own world's columns. Only the columns of force rows in use are formed
+        (a cavity's thousands of entries against every contact slot's column cost 20 ms on the
+        pneunet): on the CPU device the launch is that wide (the count is read in place); a CUDA
+        graph launches every column and the threads past the count return."""
         self.W.zero_()
         columns = self.num_columns
         if not self.device.is_cuda:
-            columns = int(self.world_force_rows.numpy().max(initial=0))
+            columns = int(self.force_columns.numpy()[0])
         wp.launch(kernels.rows_times_columns, (self.num_entries, columns),
-                  inputs=[self.h_row, self.h_node, self.h_coef, x, scale], outputs=[self.W], device=self.device)
+                  inputs=[self.h_row, self.h_node, self.h_coef, x, scale, self.force_columns], outputs=[self.W],
+                  device=self.device)
 
     def predict(self, dx: wp.array) -> wp.array:
         """``delta_free = delta + H dx`` (device, ``(rows,)``) for one displacement ``dx`` (``(1, n)``
