@@ -166,24 +166,28 @@ def test_dense_products_apply_the_host_factor_to_every_column(product, width):
 
 def test_dense_products_serve_fewer_columns_than_they_were_built_for():
     """A solve bounded to its right-hand sides in use applies the preconditioner to the first
-    ``k`` columns only: each dense product, compiled for that ``k``, equals the host factor on them."""
+    ``k`` columns only: each dense product, compiled for that ``k``, equals the host factor on
+    them; "auto" streams 2 columns and tiles 34 (more than STREAM_COLUMNS)."""
+    from warpsoft.linear.warped import STREAM_COLUMNS
     sim = ws.Simulator(bent_beam(), solver="direct")
     for _ in range(3):
         sim.step()
-    r = wp.array(np.random.default_rng(6).standard_normal((2, sim.model.num_nodes, 3)), dtype=wp.vec3d)
-    host = WarpedFactor(sim.operator, 5, "host")
+    host = WarpedFactor(sim.operator, 40, "host")
     host.prepare()
     host.refresh()
-    z_host = wp.zeros_like(r)
-    host.apply(r, z_host)
-    want = z_host.numpy()
-    for product in ("stream", "tiles"):
-        pre = WarpedFactor(sim.operator, 5, "dense", "float64", product=product, stream=(16, 2, 2))
-        pre.prepare()
-        pre.refresh()
-        z = wp.zeros_like(r)
-        pre.apply(r, z)
-        assert np.abs(z.numpy() - want).max() < 1e-9 * np.abs(want).max(), product
+    for k in (2, STREAM_COLUMNS + 2):
+        r = wp.array(np.random.default_rng(6).standard_normal((k, sim.model.num_nodes, 3)), dtype=wp.vec3d)
+        z_host = wp.zeros_like(r)
+        host.apply(r, z_host)
+        want = z_host.numpy()
+        for product in ("stream", "tiles", "auto"):
+            pre = WarpedFactor(sim.operator, 40, "dense", "float64", product=product, stream=(16, 2, 2),
+                               tiles=(8, 32, 64, 1))
+            pre.prepare()
+            pre.refresh()
+            z = wp.zeros_like(r)
+            pre.apply(r, z)
+            assert np.abs(z.numpy() - want).max() < 1e-9 * np.abs(want).max(), (k, product)
 
 
 @pytest.mark.parametrize("branches", [False, True])
@@ -225,5 +229,7 @@ def test_pick_size_takes_the_smallest_size_that_holds_the_count():
     sizes = wp.array([8, 32, 128, 289], dtype=wp.int32)
     branch = wp.zeros(4, dtype=wp.int32)
     for count, chosen in ((0, 0), (7, 0), (8, 1), (31, 1), (100, 2), (127, 2), (128, 3), (288, 3), (400, 3)):
-        wp.launch(pick_size, 1, inputs=[wp.array([count], dtype=wp.int32), 1, sizes], outputs=[branch])
+        wp.launch(pick_size, 1, inputs=[wp.array([count], dtype=wp.int32), 1, sizes, 289], outputs=[branch])
         assert branch.numpy().tolist() == [int(j == chosen) for j in range(4)], count
+    wp.launch(pick_size, 1, inputs=[wp.array([40], dtype=wp.int32), 1, sizes, 20], outputs=[branch])
+    assert branch.numpy().tolist() == [0, 1, 0, 0]  # no more than the 20 right-hand sides given

@@ -20,7 +20,8 @@ from warpsoft.io.runner import build_scene
 from warpsoft.linear import WarpedFactor
 
 ROOT = Path(__file__).resolve().parents[1]
-VARIANTS = [("tiles", (8, 128, 128, 1)), ("tiles", (8, 128, 128, 4)),  # rows, inner, threads, splits
+# tiles: rows, inner, threads, splits
+VARIANTS = [("tiles", (16, 32, 128, 1)), ("tiles", (8, 128, 128, 1)), ("tiles", (8, 128, 128, 4)),
             ("stream", (64, 2, 2)), ("stream", (64, 4, 2)), ("stream", (64, 1, 2)), ("stream", (64, 4, 4)),
             ("stream", (32, 4, 1)), ("stream", (32, 4, 2)), ("stream", (128, 2, 2)),
             ("stream", (128, 4, 4))]  # segments, unrolled loads, numbers per load
@@ -35,7 +36,8 @@ def main(argv=None) -> int:
     ap.add_argument("--products", nargs="*", default=["stream", "tiles"])
     ap.add_argument("--precisions", nargs="*", default=["float64", "float32"])
     ap.add_argument("--variants", nargs="*", default=None,
-                    help="stream shapes to try instead of the list, as segments,unroll,width (e.g. 64,4,2)")
+                    help="shapes to try instead of the list: stream segments,unroll,width (e.g. 64,4,2) or "
+                         "tiles:rows,inner,threads,splits (e.g. tiles:8,32,128,1)")
     args = ap.parse_args(argv)
     sim = Simulator(build_scene(ROOT / args.scene), device="cuda", solver="direct")
     sim.step()
@@ -43,8 +45,9 @@ def main(argv=None) -> int:
     r = wp.array(np.random.default_rng(0).standard_normal((args.columns, n, 3)), dtype=wp.vec3d, device=d)
     z = wp.zeros_like(r)
     print(f"{args.scene}: {3 * n} DOFs, {args.columns} columns")
-    variants = VARIANTS if args.variants is None else [("stream", tuple(int(v) for v in x.split(",")))
-                                                       for x in args.variants]
+    variants = VARIANTS if args.variants is None else [
+        ("tiles", tuple(int(v) for v in x[6:].split(","))) if x.startswith("tiles:")
+        else ("stream", tuple(int(v) for v in x.split(","))) for x in args.variants]
     for precision in args.precisions:
         ref = None
         for product, shape in [v for v in variants if v[0] in args.products]:

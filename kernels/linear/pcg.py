@@ -206,11 +206,11 @@ def pcg_scalars(scal: wp.array3d(dtype=wp.float64), tolerance: wp.float64, max_i
 
 
 @wp.kernel
-def pick_size(count: wp.array(dtype=wp.int32), offset: int, sizes: wp.array(dtype=wp.int32),
+def pick_size(count: wp.array(dtype=wp.int32), offset: int, sizes: wp.array(dtype=wp.int32), most: int,
               branch: wp.array(dtype=wp.int32)):
     """One thread: ``branch[j] = 1`` for the smallest ``sizes[j]`` (ascending) that holds
-    ``offset + count[0]`` right-hand sides (the last one when none does), 0 for the others."""
-    need = offset + count[0]
+    ``min(offset + count[0], most)`` right-hand sides (the last one when none does), 0 for the others."""
+    need = wp.min(offset + count[0], most)
     chosen = sizes.shape[0] - 1
     for j in range(sizes.shape[0] - 1, -1, -1):
         branch[j] = 0

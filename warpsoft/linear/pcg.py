@@ -72,8 +72,11 @@ class PCG:
         self._graphs = {}
         self.count, self.offset = None, 0  # right-hand sides in use: offset + count[0] (None: all)
         self.sizes = [s for s in SIZES if s < shape[0]] + [shape[0]]
+        # made here, never inside a capture: an array made there is filled by a copy the graph
+        # replays from host memory freed since (a graph captured at the first step picked wrong
+        # sizes at the 20th)
+        self.sizes_d = wp.array(self.sizes, dtype=wp.int32, device=m.device)
         self.branch = wp.zeros(len(self.sizes), dtype=wp.int32, device=m.device)
-        self._sizes: dict[tuple, wp.array] = {}
         self.branches = m.device.is_cuda  # a bounded solve by size branches; else the count is read
 
     def bound(self, count: wp.array, offset: int = 0) -> None:
@@ -148,14 +151,11 @@ class PCG:
             self._columns(b, x, k)
         elif not self.branches:  # (the CPU device: the count is host memory)
             self._columns(b, x, min(k, self.offset + int(self.count.numpy()[0])))
-        else:
-            sizes = tuple(s for s in self.sizes if s < k) + (k,)
-            if sizes not in self._sizes:
-                self._sizes[sizes] = wp.array(sizes, dtype=wp.int32, device=d)
-            wp.launch(kernels.pick_size, 1, inputs=[self.count, self.offset, self._sizes[sizes]],
-                      outputs=[self.branch], device=d)
-            for j, size in enumerate(sizes):  # one branch runs: the smallest size that holds the count
-                wp.capture_if(self.branch[j:j + 1], self._columns, b=b, x=x, k=size)
+        else:  # one branch runs: the smallest size that holds the count (clamped to k)
+            wp.launch(kernels.pick_size, 1, inputs=[self.count, self.offset, self.sizes_d, k], outputs=[self.branch],
+                      device=d)
+            for j, size in enumerate(self.sizes):
+                wp.capture_if(self.branch[j:j + 1], self._columns, b=b, x=x, k=min(size, k))
 
     def _columns(self, b: wp.array, x: wp.array, k: int) -> None:
         """The solve of the first ``k`` right-hand sides."""

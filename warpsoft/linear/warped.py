@@ -30,12 +30,20 @@ from .assembly import Assembly, CholmodFactor, solve_dofs
 from .operator import SystemOperator
 
 MODES = ("auto", "host", "dense")
-PRODUCTS = ("stream", "tiles")
+PRODUCTS = ("auto", "stream", "tiles")
 DENSE_LIMIT = 12000  # free DOFs above which "auto" does not keep a dense inverse (1.2 GB in float64)
-TILES = (8, 128, 128, 1)  # tiled product: rows per block, columns per tile, threads, splits (tools/bench_precond.py)
+# tiled product: rows per block, inner dimension per tile, threads, splits; the fastest for many columns
+# (tools/bench_precond.py, H200 float32, 128 columns: Octoleg 97 us, PneuNet 1291 us; (8, 32, ...) 110 and
+# 2885 us, (8, 64, ...) 2147 us on the PneuNet; (8, 128, ...), once the default, 100 us on the Octoleg)
+TILES = (16, 32, 128, 1)
 # streaming product: segments of the inner dimension, loads in flight per thread, numbers per load; the
 # fastest measured on the Diamond and the Trunk in both precisions (tools/bench_precond.py)
 STREAM = (64, 2, 2)
+# "auto": right-hand sides up to which the product is streamed, above it tiled. H200, float32, us per
+# application, streamed/tiled (tools/bench_precond.py, docs/bench-v2-gpu-columns/precond/): Octoleg
+# (1431 DOFs) 16 columns 22.5/43.6, 32: 35.2/57.5, 128: 224/97, 290: 3559/372; PneuNet (8565
+# DOFs) 32: 610/618, 128: 4436/1291 (a streaming thread holds k sums per row: past 32 they spill)
+STREAM_COLUMNS = 32
 
 
 class WarpedFactor:
@@ -45,7 +53,9 @@ class WarpedFactor:
         mode: "host", "dense", or "auto" (dense on CUDA up to ``DENSE_LIMIT`` free DOFs).
         precision: "float32" or "float64", of the dense inverse only (it preconditions a float64 CG).
         refresh_ratio, refresh_floor: when to refactorize (see the module doc).
-        product: the dense product, "stream" or "tiles".
+        product: the dense product, "stream", "tiles" or "auto" (streamed for up to
+            :data:`STREAM_COLUMNS` right-hand sides, tiled for more: a solve bounded to the columns
+            in use takes either).
         tiles: the tiled product's (rows per block, columns per tile, threads per block, splits of
             the inner dimension; 1 if left out).
         stream: the streaming product's (segments of the inner dimension, unrolled loads, numbers
@@ -53,7 +63,7 @@ class WarpedFactor:
     """
 
     def __init__(self, operator: SystemOperator, columns: int, mode: str = "auto", precision: str = "float32",
-                 refresh_ratio: float = 2.0, refresh_floor: int = 40, product: str = "stream",
+                 refresh_ratio: float = 2.0, refresh_floor: int = 40, product: str = "auto",
                  tiles: tuple[int, ...] = TILES, stream: tuple[int, int] = STREAM):
         if mode not in MODES:
             raise ValueError(f"WarpedFactor: mode must be one of {MODES}, got {mode!r}")
@@ -82,22 +92,29 @@ class WarpedFactor:
         else:
             self.dtype = wp.float64 if precision == "float64" else wp.float32
             self.product, self.inverse = product, None
-            if product == "tiles":
-                self.tiles = (*(int(t) for t in tiles), 1)[:4]
-                step = np.lcm(self.tiles[0], self.tiles[1] * self.tiles[3])
-                self.padded = int(-(-3 * n // step) * step)
-                self.u = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
+            self.tiles = (*(int(t) for t in tiles), 1)[:4]
+            self.stream = (*(int(t) for t in stream), 1)[:3]
+            segments, unroll, width = self.stream
+            streamed = [k for k in range(1, self.columns + 1) if self._streams(k)]  # the k it streams
+            step = 1
+            if streamed:
+                step = np.lcm(step, np.lcm(segments * unroll, width))
+            if len(streamed) < self.columns:
+                step = np.lcm(step, np.lcm(self.tiles[0], self.tiles[1] * self.tiles[3]))
+            self.padded = int(-(-3 * n // step) * step)
+            self.u = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
+            self.y = self.partials = None  # the tiled product's output, the streamed one's partial sums
+            if len(streamed) < self.columns:
                 self.y = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
                 self._rotate_in, self._rotate_out = kernels.flat_rotations(self.dtype)
-            else:
-                segments, unroll, width = (*(int(t) for t in stream), 1)[:3]
-                self.stream = (segments, unroll, width)
-                step = np.lcm(segments * unroll, width)
-                self.padded = int(-(-3 * n // step) * step)
+            if streamed:
                 self.segment = self.padded // segments
-                self._wide = kernels.stream_kernels(self.columns, self.dtype, segments, unroll, width)[0]
-                self.u = wp.zeros((self.padded, self.columns), dtype=self.dtype, device=d)
-                self.partials = wp.zeros((segments, self.columns, self.padded), dtype=self.dtype, device=d)
+                self._wide = kernels.stream_kernels(1, self.dtype, segments, unroll, width)[0]
+                self.partials = wp.zeros((segments, max(streamed), self.padded), dtype=self.dtype, device=d)
+
+    def _streams(self, k: int) -> bool:
+        """Whether ``k`` right-hand sides take the streamed product (else the tiled one)."""
+        return self.product == "stream" or (self.product == "auto" and k <= STREAM_COLUMNS)
 
     @property
     def memory_bytes(self) -> int:
@@ -134,7 +151,7 @@ class WarpedFactor:
             dense[np.ix_(free, free)] = 0.5 * (inv + inv.T)  # symmetric to round-off; made exact
             if self.inverse is None:
                 self.inverse = wp.array(dense, dtype=self.dtype, device=m.device)
-                if self.product == "stream":  # the same memory, W numbers per element
+                if self.partials is not None:  # the same memory, W numbers per element
                     w = self.stream[2]
                     self._inverse_wide = wp.array(ptr=self.inverse.ptr, dtype=self._wide,
                                                   shape=(self.padded, self.padded // w), device=m.device)
@@ -156,7 +173,7 @@ class WarpedFactor:
         m, d = self.op.model, self.op.model.device
         shape = r.shape
         k = shape[0]
-        if self.mode == "dense" and self.product == "stream":
+        if self.mode == "dense" and self._streams(k):
             _, rotate_in, partial_product, rotate_out = kernels.stream_kernels(k, self.dtype, *self.stream)
             wp.launch(rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
             wp.launch(partial_product, (self.stream[0], self.padded // self.stream[2]),
