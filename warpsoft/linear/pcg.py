@@ -26,7 +26,7 @@ from warpsoft.kernels.linear import pcg as kernels
 
 from .operator import SystemOperator
 
-SIZES = (8, 32, 128)  # right-hand sides a bounded CUDA solve is captured for (then every k)
+SIZES = (8, 32, 64, 128)  # right-hand sides a bounded CUDA solve is captured for (then every k)
 
 
 @dataclass

@@ -186,8 +186,13 @@ class ContactRows(RowKind):
         self.points.node, self.points.body = self.cand_node, i32(np.concatenate(cand["body"]))
         self.points.local = f64(np.concatenate(cand["local"]), wp.vec3d)
         self.points.obstacle = self.cand_obstacle = i32(np.concatenate(cand["obstacle"]))
-        self._no_bodies = None  # the Bodies struct of a model without rigid bodies (inert arrays)
-        self._still = None  # the nodes' velocities when the rows are evaluated without a State (0)
+        # made here, never inside a capture (an array uploaded there is filled by a copy the graph
+        # replays from host memory freed since): the Bodies struct of a model without rigid
+        # bodies (inert arrays), the nodes' velocities when the rows are evaluated without a State
+        self._no_bodies = kernels.Bodies()
+        self._no_bodies.p = self._no_bodies.v = self._no_bodies.w = wp.zeros(1, dtype=wp.vec3d, device=d)
+        self._no_bodies.r = wp.array([[0.0, 0.0, 0.0, 1.0]], dtype=wp.quatd, device=d)
+        self._still = wp.zeros(model.num_nodes, dtype=wp.vec3d, device=d)
         self._bodies = {}  # a State's Bodies struct, by the State
         self.world_cand_start = i32(cand_start)
         self.capacity = i32(capacity)  # contact slots per world
@@ -212,11 +217,6 @@ class ContactRows(RowKind):
     def bodies(self, state) -> kernels.Bodies:
         """The rigid bodies of ``state`` as the kernels take them (inert arrays without bodies)."""
         if state is None or state.body_p is None:
-            if self._no_bodies is None:
-                d = self.model.device
-                self._no_bodies = kernels.Bodies()
-                self._no_bodies.p = self._no_bodies.v = self._no_bodies.w = wp.zeros(1, dtype=wp.vec3d, device=d)
-                self._no_bodies.r = wp.array([[0.0, 0.0, 0.0, 1.0]], dtype=wp.quatd, device=d)
             return self._no_bodies
         key = state.body_p.ptr
         if key not in self._bodies:
@@ -229,8 +229,6 @@ class ContactRows(RowKind):
         """The nodes' velocities (m/s) of the State the rows are evaluated at (0 without one)."""
         state = table.bodies
         if state is None or getattr(state, "v", None) is None:
-            if self._still is None:
-                self._still = wp.zeros(self.model.num_nodes, dtype=wp.vec3d, device=self.model.device)
             return self._still
         return state.v
 
