@@ -171,8 +171,8 @@ class Simulator:
             self.columns, self.X = self.rhs[1:], self.sol[1:]
         self.solver = make_solver(self.solver_name, self.operator, 1 + ncol, tolerance, max_iterations, graphs,
                                   check_every, factorization, preconditioner, precision)
-        if ncol and hasattr(self.solver, "bound"):  # the free solve and the force rows' columns in use
-            self.solver.bound(self.rows.force_columns, 1)
+        if ncol and self.rows.kind("contact") is not None and hasattr(self.solver, "bound"):
+            self.solver.bound(self.rows.force_columns, 1)  # the free solve and the columns of the contacts in use
         if getattr(self.solver, "factor_compliance", False) and ncol:  # the correction's solve (no columns X)
             self.no_motion = wp.zeros(n, dtype=wp.vec3d, device=d)
             self.row_force = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # s H^T lambda (N)

@@ -147,7 +147,7 @@ class PCG:
         k = min(b.shape[0], self.r.shape[0])
         self.scal.zero_()  # right-hand sides left out read as converged (b = 0)
         self.info.zero_()
-        if self.count is None or k == 1:
+        if self.count is None or k == 1 or (self.branches and len(self.sizes) == 1):  # all of them
             self._columns(b, x, k)
         elif not self.branches:  # (the CPU device: the count is host memory)
             self._columns(b, x, min(k, self.offset + int(self.count.numpy()[0])))
