@@ -145,6 +145,12 @@ _streams = {}
 _wide_types = {}
 
 
+def wide_type(width: int, dtype):
+    """``vector(width, dtype)``: the streamed product's load of ``width`` numbers of the inverse,
+    one type for every ``k`` (the inverse's wide view is made once, for all of them)."""
+    return _wide_types.setdefault((width, dtype), wp.types.vector(length=width, dtype=dtype))
+
+
 def stream_kernels(columns: int, dtype, segments: int = 32, unroll: int = 4, width: int = 1):
     """``(wide, rotate_in, partial_product, rotate_out)``: ``vector(W, dtype)`` and the kernels of
     the streaming product for ``k = columns`` right-hand sides in precision ``dtype`` (``U`` is ``(N, k)``, ``P`` is
@@ -162,7 +168,7 @@ def stream_kernels(columns: int, dtype, segments: int = 32, unroll: int = 4, wid
         return _streams[key]
     K, S, UN, W = columns, segments, unroll, width
     G = 16 if S % 16 == 0 else (8 if S % 8 == 0 else 1)  # partials added G at a time: their loads go out together
-    wide = _wide_types.setdefault((W, dtype), wp.types.vector(length=W, dtype=dtype))  # one type for every k
+    wide = wide_type(W, dtype)
     sums = wp.types.matrix(shape=(W, K), dtype=dtype)
 
     @wp.kernel(module="unique")

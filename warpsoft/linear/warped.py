@@ -12,7 +12,8 @@ Jacobi needs 577.
   memory bandwidth, and the loop can be captured as one graph). Built from the factorization;
   its memory is ``8 N^2`` bytes (``4 N^2`` in float32). Its product with the ``k`` columns is
   either ``stream`` (the symmetric matrix read down its columns, the inner dimension cut into
-  segments) or ``tiles`` (tiled matrix product); ``tools/bench_precond.py`` measures both.
+  segments) or ``tiles`` (tiled matrix product), or by ``auto`` the first for a few columns and
+  the second for many; ``tools/bench_precond.py`` measures both.
 
 The factorization is refreshed at the current state when a solve needs more than
 ``refresh_ratio`` times the iterations of the first solve after the last refresh (and more
@@ -56,8 +57,8 @@ class WarpedFactor:
         product: the dense product, "stream", "tiles" or "auto" (streamed for up to
             :data:`STREAM_COLUMNS` right-hand sides, tiled for more: a solve bounded to the columns
             in use takes either).
-        tiles: the tiled product's (rows per block, columns per tile, threads per block, splits of
-            the inner dimension; 1 if left out).
+        tiles: the tiled product's (rows per block, inner dimension per tile, threads per block,
+            splits of the inner dimension; 1 if left out).
         stream: the streaming product's (segments of the inner dimension, unrolled loads, numbers
             per load).
     """
@@ -109,7 +110,7 @@ class WarpedFactor:
                 self._rotate_in, self._rotate_out = kernels.flat_rotations(self.dtype)
             if streamed:
                 self.segment = self.padded // segments
-                self._wide = kernels.stream_kernels(1, self.dtype, segments, unroll, width)[0]
+                self._wide = kernels.wide_type(width, self.dtype)
                 self.partials = wp.zeros((segments, max(streamed), self.padded), dtype=self.dtype, device=d)
 
     def _streams(self, k: int) -> bool:
