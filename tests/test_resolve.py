@@ -48,7 +48,7 @@ def test_device_gauss_seidel_equals_numpy(seed):
         lam0[s:s + na] = rng.uniform(-0.5, 1.0, na)
         narrowed = RowInputs(force, value, lo, hi, np.clip(dmin, now - step, now + step),
                              np.clip(dmax, now - step, now + step))
-        expected.append(projected_gauss_seidel(Ww, df, narrowed, lam0[s:s + na]))
+        expected.append(projected_gauss_seidel(Ww, df, narrowed, lam0[s:s + na], tolerance=1e-12))
 
     d = "cpu"
     lam = wp.array(lam0, dtype=wp.float64, device=d)
@@ -138,3 +138,20 @@ def test_device_qp_reports_infeasible_constraints():
     b = np.array([[[1.0, 0.0], [np.inf, np.inf], [-np.inf, -np.inf], [-1.0, np.inf]]])
     _, status = dense_qps(P, q, G, b, n)
     assert status[0] == 2  # INFEASIBLE
+
+
+def test_the_stopping_test_measures_deltas_not_a_force_driven_rows_force():
+    """A pressure row (force-driven at 60 kPa, and at least what keeps its volume change above
+    -5e-6 m^3; W in m^3/Pa) coupled to a cable row aimed at 1 mm: the sweeps stop on the change
+    of the deltas (m, m^3) relative to their scale, not to the pressure's 6e4 Pa. (With the
+    pressure in the scale, the default tolerance stopped them with the volume 1.1e-9 m^3 off.)"""
+    W = np.array([[2e-10, -3e-7], [-3e-7, 1e-3]])  # m^3/Pa, m/N; symmetric positive definite
+    delta_free = np.array([-2e-5, 0.0])
+    rows = RowInputs(force_mode=np.array([True, False]), value=np.array([6e4, 1e-3]),
+                     lo=np.array([0.0, 0.0]), hi=np.full(2, np.inf), dmin=np.array([-5e-6, -np.inf]),
+                     dmax=np.full(2, np.inf))
+    res = projected_gauss_seidel(W, delta_free, rows)
+    exact = np.linalg.solve(W, np.array([-5e-6, 1e-3]) - delta_free)  # the volume at its bound, the cable at 1 mm
+    assert exact[0] > 6e4 and exact[1] > 0.0 and res.converged and res.iterations > 5
+    delta = delta_free + W @ res.lam
+    assert abs(delta[1] - 1e-3) < 1e-12 and abs(delta[0] + 5e-6) < 1e-14

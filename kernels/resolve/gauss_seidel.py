@@ -174,8 +174,10 @@ def projected_gauss_seidel(
     for i in range(na):
         r = s + i
         lam[r] = clamp(lam[r], inputs[LO, r], inputs[HI, r])
-        dmin, dmax = bounds_this_step(inputs, delta_now, r)
-        scale = wp.max(scale, wp.max(wp.abs(delta_free[r]), wp.abs(clamp(inputs[VALUE, r], dmin, dmax))))
+        scale = wp.max(scale, wp.abs(delta_free[r]))
+        if inputs[FORCE_MODE, r] == wp.float64(0.0):  # a displacement-driven row's target (a force-driven
+            dmin, dmax = bounds_this_step(inputs, delta_now, r)  # row's value is a force, not a delta)
+            scale = wp.max(scale, wp.abs(clamp(inputs[VALUE, r], dmin, dmax)))
     change = wp.float64(0.0)
     sweeps = wp.int32(0)  # not int(0): ruff would fold it to a constant
     converged = wp.float64(0.0)

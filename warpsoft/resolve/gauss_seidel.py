@@ -42,7 +42,7 @@ class ResolveResult:
 
 
 def projected_gauss_seidel(W: np.ndarray, delta_free: np.ndarray, rows: RowInputs, lam0: np.ndarray | None = None,
-                           max_iterations: int = 1000, tolerance: float = 1e-12) -> ResolveResult:
+                           max_iterations: int = 1000, tolerance: float = 1e-10) -> ResolveResult:
     """Solve for ``lambda`` (``na``) given ``W`` (``na x na``) and ``delta_free`` (``na``).
 
     ``tolerance`` is relative to the largest ``|delta|`` scale of the problem.
@@ -51,7 +51,10 @@ def projected_gauss_seidel(W: np.ndarray, delta_free: np.ndarray, rows: RowInput
     lam = np.zeros(na) if lam0 is None else np.clip(np.array(lam0, dtype=float), rows.lo, rows.hi)
     target = np.clip(rows.value, rows.dmin, rows.dmax)
     diag = np.diag(W).copy()
-    scale = max(float(np.max(np.abs(delta_free), initial=0.0)), float(np.max(np.abs(target), initial=0.0)), 1e-300)
+    # the scale of delta: the free deltas and the displacement-driven rows' targets (a force-driven
+    # row's value is a force, N or Pa, not a delta)
+    aimed = np.where(np.asarray(rows.force_mode, dtype=bool), 0.0, np.abs(target))
+    scale = max(float(np.max(np.abs(delta_free), initial=0.0)), float(np.max(aimed, initial=0.0)), 1e-300)
     change = 0.0
     for it in range(1, max_iterations + 1):
         change = 0.0
@@ -92,7 +95,7 @@ class GaussSeidel:
     the sweeps, last change and convergence of each world.
     """
 
-    def __init__(self, rows, max_iterations: int = 1000, tolerance: float = 1e-12):
+    def __init__(self, rows, max_iterations: int = 1000, tolerance: float = 1e-10):
         self.rows, d = rows, rows.device
         n = max(rows.num_rows, 1)
         host = np.zeros((kernels.NUM_INPUTS, n))
