@@ -184,7 +184,7 @@ def test_a_dropped_cube_to_usd_and_report(tmp_path):
 def test_gauss_seidel_on_the_host_equals_the_device_one():
     """On CUDA, worlds with contacts sweep on the host between two graphs; forced here on the CPU
     device, the same sweeps give the same motion (a cube landing with friction)."""
-    device, host = (ws.Simulator(drop_scene(drop=0.005), device="cpu") for _ in range(2))
+    device, host = (ws.Simulator(drop_scene(drop=0.005), device="cpu", lazy_contacts=False) for _ in range(2))
     host.host_gauss_seidel = True
     calls, sweep = [], host.gauss_seidel.solve_host
     host.gauss_seidel.solve_host = lambda arrays: (calls.append(1), sweep(arrays))

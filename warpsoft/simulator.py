@@ -20,6 +20,7 @@ from .model import Model
 from .newton import Newton
 from .readback import Readback
 from .resolve import GaussSeidel, kinematic_jacobian
+from .resolve.contact_set import ContactSet
 from .resolve.inverse_device import NMAX, DeviceInverse
 from .rigid import RigidBodies
 from .rows import Rows
@@ -72,6 +73,9 @@ class Simulator:
             correction's own (``|R . e| / e . A e``, see :mod:`warpsoft.newton`), at which a world's
             step is done; above it after ``newton_iterations``, the step warns.
         line_search: most shortened retries of a Newton step that overshot (0: full steps only).
+        lazy_contacts: ``direct`` on the CPU device, direct model with contacts: resolve only the
+            contacts that bear, found lazily (:mod:`warpsoft.resolve.contact_set`); False forms
+            ``W`` between every contact in contact distance (the same solution, for comparison).
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
@@ -79,7 +83,7 @@ class Simulator:
                  timing: bool = True, check_every: int | None = None, graphs: bool = True,
                  factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
                  qp: str = "auto", newton_iterations: int = 10, newton_tolerance: float = 0.1,
-                 line_search: int = 4):
+                 line_search: int = 4, lazy_contacts: bool = True):
         if solver not in SOLVERS:
             raise SceneError(f"Simulator: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         if not (0.0 < float(tolerance) < 1.0):
@@ -177,6 +181,11 @@ class Simulator:
             self.no_motion = wp.zeros(n, dtype=wp.vec3d, device=d)
             self.row_force = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # s H^T lambda (N)
             self.row_motion = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # A^-1 of it (m)
+        # the CPU path resolves the contacts that bear, found lazily, where W comes from the factor
+        self.contact_set = None
+        if (lazy_contacts and getattr(self.solver, "factor_compliance", False) and ncol
+                and self.rows.kind("contact") is not None and not inverse_worlds):
+            self.contact_set = ContactSet(self)
         self.solve_result = None  # the last solve's outcome, when it ran outside a graph
         self.newton = Newton(self, newton_iterations, newton_tolerance, line_search)
 

@@ -229,10 +229,19 @@ def from_factor(sim: Simulator) -> bool:
     return int(sim.rows.world_force_rows.numpy().sum()) >= FACTOR_COLUMNS  # (a view on the CPU device)
 
 
+def lazy(sim: Simulator) -> bool:
+    """Whether this iteration resolves the lazy contact set (:mod:`warpsoft.resolve.contact_set`):
+    the CPU path, ``W`` from the factor, direct-model worlds with contacts swept on the device."""
+    return sim.contact_set is not None and not sim.host_gauss_seidel and from_factor(sim)
+
+
 def compliance(sim: Simulator) -> None:
-    """``delta_free = delta(q_k) + H e`` and ``W = s H X`` (device)."""
+    """``delta_free = delta(q_k) + H e`` and ``W = s H X`` (device); with the lazy contact set,
+    only the rigid bodies' share of ``W`` (the resolve forms the soft share of its set)."""
     sim.rows.predict(sim.dx_free)
-    if from_factor(sim):
+    if lazy(sim):
+        sim.rows.W.zero_()
+    elif from_factor(sim):
         sim.solver.compliance(sim.rows, sim.constraint_scale)
     else:
         sim.rows.compliance(sim.X, sim.constraint_scale)
@@ -247,16 +256,26 @@ def correction(sim: Simulator, actuated: bool, make: bool = True) -> wp.array:
     columns (``from_factor``), ``s A^-1 H^T lambda`` is one more solve."""
     if not actuated:
         return sim.dx_free[0]
-    if make and from_factor(sim):  # e = e_free + A^-1 (s H^T lambda): one solve instead of the columns
-        sim.rows.correct(sim.no_motion, sim.columns, sim.gauss_seidel.lam, sim.constraint_scale, sim.row_force[0])
-        sim.solver.solve(sim.row_force, sim.row_motion)
-        wp.launch(row_kernels.add_motion, sim.model.num_nodes, inputs=[sim.dx_free[0], sim.row_motion[0]],
-                  outputs=[sim.dx], device=sim.model.device)
+    if make and lazy(sim):  # the contact set's resolve made it, checking the contacts left out
+        return sim.dx
+    if make and from_factor(sim):
+        correct_by_one_solve(sim)
     elif make:
         sim.rows.correct(sim.dx_free[0], sim.X, sim.gauss_seidel.lam, sim.constraint_scale, sim.dx)
-    if make and sim.rigid is not None:
-        sim.rigid.correct(sim.gauss_seidel.lam, sim.constraint_scale)
+        if sim.rigid is not None:
+            sim.rigid.correct(sim.gauss_seidel.lam, sim.constraint_scale)
     return sim.dx
+
+
+def correct_by_one_solve(sim: Simulator) -> None:
+    """``e = e_free + A^-1 (s H^T lambda)``: one solve instead of the columns (``row_motion``
+    keeps the second term), and the rigid bodies' correction."""
+    sim.rows.correct(sim.no_motion, sim.columns, sim.gauss_seidel.lam, sim.constraint_scale, sim.row_force[0])
+    sim.solver.solve(sim.row_force, sim.row_motion)
+    wp.launch(row_kernels.add_motion, sim.model.num_nodes, inputs=[sim.dx_free[0], sim.row_motion[0]],
+              outputs=[sim.dx], device=sim.model.device)
+    if sim.rigid is not None:
+        sim.rigid.correct(sim.gauss_seidel.lam, sim.constraint_scale)
 
 
 def relinearize(sim: Simulator, actuated: bool) -> None:
@@ -354,6 +373,9 @@ def resolve_on_device(sim: Simulator) -> None:
     inverse-model worlds' QP when it runs on the device (each leaves the other's multipliers
     alone). The actuators' per-step limits count from the rows at the step's start."""
     rows, start = sim.rows, sim.newton.delta_start
+    if lazy(sim):  # (no inverse world then)
+        sim.contact_set.resolve(lambda: correct_by_one_solve(sim))
+        return
     if any(not s.inverse for s in sim.model.scenes) and not sim.host_gauss_seidel:
         sim.gauss_seidel.solve(rows.W, rows.delta_free, start)
     if sim.device_inverse is not None:

@@ -57,15 +57,19 @@ class SparseDirect:
         """Solve for right-hand sides ``(k, n, 3)`` (host arrays); fixed DOFs get 0."""
         return solve_dofs(self.factor, b.reshape(b.shape[0], -1)).reshape(b.shape)
 
-    def compliance(self, rows, scale: float) -> None:
+    def compliance(self, rows, scale: float, only: np.ndarray | None = None) -> None:
         """``W = scale H A^-1 H_f^T`` into ``rows.W`` (every row against its world's force rows in
         use) from the factor, without the columns ``X = A^-1 H_f^T``: ``Z = L^-1 P H^T`` over the
         rows that have soft entries, by one sparse forward solve, then ``W = Z^T Z_f``. Measured
         on the Grasper (108 force rows, 2-core VM): 2.7 ms, against 7.4 ms for solving the 108
-        columns. CPU device only (the rows' arrays are read in place)."""
+        columns. With ``only`` (bool, ``(rows,)``), the rows outside it get no ``Z`` column: their
+        row and column of ``W`` stay 0 (the contacts left out of the lazy set, see
+        :mod:`warpsoft.resolve.contact_set`). CPU device only (the rows' arrays are read in place)."""
         h_row, h_node, h_coef = rows.h_row.numpy(), rows.h_node.numpy(), rows.h_coef.numpy()
         dof = self.assembly.renum[3 * h_node[:, None] + np.arange(3)]  # (entries, 3)
         keep = (dof >= 0) & (h_coef != 0.0)
+        if only is not None:
+            keep &= only[h_row][:, None]
         row = np.broadcast_to(h_row[:, None], dof.shape)[keep]
         used, column = np.unique(row, return_inverse=True)  # the rows with soft entries, as Z's columns
         W = rows.W.numpy()
