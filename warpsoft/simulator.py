@@ -178,7 +178,6 @@ class Simulator:
         if ncol and self.rows.kind("contact") is not None and hasattr(self.solver, "bound"):
             self.solver.bound(self.rows.force_columns, 1)  # the free solve and the columns of the contacts in use
         if getattr(self.solver, "factor_compliance", False) and ncol:  # the correction's solve (no columns X)
-            self.no_motion = wp.zeros(n, dtype=wp.vec3d, device=d)
             self.row_force = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # s H^T lambda (N)
             self.row_motion = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # A^-1 of it (m)
         # the CPU path resolves the contacts that bear, found lazily, where W comes from the factor

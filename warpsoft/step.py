@@ -270,7 +270,7 @@ def correction(sim: Simulator, actuated: bool, make: bool = True) -> wp.array:
 def correct_by_one_solve(sim: Simulator) -> None:
     """``e = e_free + A^-1 (s H^T lambda)``: one solve instead of the columns (``row_motion``
     keeps the second term), and the rigid bodies' correction."""
-    sim.rows.correct(sim.no_motion, sim.columns, sim.gauss_seidel.lam, sim.constraint_scale, sim.row_force[0])
+    sim.rows.force_rows_forces(sim.gauss_seidel.lam, sim.constraint_scale, sim.row_force[0])
     sim.solver.solve(sim.row_force, sim.row_motion)
     wp.launch(row_kernels.add_motion, sim.model.num_nodes, inputs=[sim.dx_free[0], sim.row_motion[0]],
               outputs=[sim.dx], device=sim.model.device)

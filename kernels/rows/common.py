@@ -96,6 +96,26 @@ def correct_with_columns(
 
 
 @wp.kernel
+def force_rows_transpose_times(
+    h_row: wp.array(dtype=wp.int32),
+    h_node: wp.array(dtype=wp.int32),
+    h_coef: wp.array(dtype=wp.vec3d),
+    lam: wp.array(dtype=wp.float64),
+    scale: wp.float64,
+    column_of_row: wp.array(dtype=wp.int32),
+    node_world: wp.array(dtype=wp.int32),
+    world_force_rows: wp.array(dtype=wp.int32),
+    force: wp.array(dtype=wp.vec3d),
+):
+    """``force += scale H_f^T lam`` (launched over entries) over the force rows in use: a row
+    whose column is below its world's count (the world of the entry's node)."""
+    k = wp.tid()
+    c = column_of_row[h_row[k]]
+    if c >= 0 and c < world_force_rows[node_world[h_node[k]]]:
+        wp.atomic_add(force, h_node[k], (scale * lam[h_row[k]]) * h_coef[k])
+
+
+@wp.kernel
 def rows_transpose_times(
     h_row: wp.array(dtype=wp.int32),
     h_node: wp.array(dtype=wp.int32),

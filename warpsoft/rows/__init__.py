@@ -262,6 +262,14 @@ class Rows:
                   inputs=[dx_free, x, lam, m.node_world, self.world_row_start_d, self.world_force_rows, scale],
                   outputs=[dx], device=self.device)
 
+    def force_rows_forces(self, lam: wp.array, scale: float, force: wp.array) -> None:
+        """``force = scale H_f^T lam`` (device, ``(n,)`` vec3d, N x scale) over each world's force
+        rows in use: the right-hand side of the correction's one solve (the CPU path)."""
+        force.zero_()
+        wp.launch(kernels.force_rows_transpose_times, self.num_entries,
+                  inputs=[self.h_row, self.h_node, self.h_coef, lam, scale, self.column_of_row, self.model.node_world,
+                          self.world_force_rows], outputs=[force], device=self.device)
+
     def forces(self, lam: np.ndarray) -> np.ndarray:
         """Nodal forces ``H^T lambda`` (N), ``(n, 3)``, for multipliers of all rows."""
         f = wp.zeros(self.model.num_nodes, dtype=wp.vec3d, device=self.device)
