@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+import warp as wp
+from warpsoft.kernels.elastic.geometry import polar_rotation
 
 import warpsoft as ws
 from warpsoft.scene.mesh import signed_volumes
@@ -129,3 +131,34 @@ def test_stiffness_contrast_of_1e4_between_parts():
         assert abs(p["joint"][2] - H / 2) < 1e-3 * abs(tips[-1])  # the stiff half hardly bends
     assert tips[1] == pytest.approx(tips[0], rel=1e-6)
     assert tips[2] == pytest.approx(tips[0], rel=1e-6)
+
+
+@wp.kernel
+def _polar(F: wp.array(dtype=wp.mat33d), R: wp.array(dtype=wp.mat33d)):
+    i = wp.tid()
+    R[i] = polar_rotation(F[i])
+
+
+def test_polar_rotation_is_the_svd_rotation_for_every_deformation():
+    """The element rotation (Newton's iteration where ``det F > 0``, the SVD elsewhere) is the
+    rotation of ``F = U S V^T``: ``U V^T``, with the smallest singular direction flipped when
+    ``det F < 0``, for mild and large deformations, inverted ones and elements squashed flat."""
+    rng = np.random.default_rng(3)
+
+    def rotation() -> np.ndarray:
+        q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+        q = q * np.sign(np.diag(r))
+        return q * np.linalg.det(q)
+
+    mild = [rotation() @ (np.eye(3) + 0.05 * rng.normal(size=(3, 3))) for _ in range(300)]
+    large = [rotation() @ (np.eye(3) + 1.5 * rng.normal(size=(3, 3))) for _ in range(300)]
+    flat = [rotation() @ np.diag([1.0, 0.5, 10.0 ** -k]) @ rotation() for k in np.linspace(1, 10, 100)]
+    F = np.array(mild + large + flat)
+    R = wp.zeros(len(F), dtype=wp.mat33d, device="cpu")
+    wp.launch(_polar, len(F), inputs=[wp.array(F, dtype=wp.mat33d, device="cpu")], outputs=[R], device="cpu")
+    U, _, Vt = np.linalg.svd(F)
+    U[np.linalg.det(U @ Vt) < 0, :, 2] *= -1
+    expected = U @ Vt
+    assert (np.linalg.det(F) < 0).sum() > 50  # inverted ones are in
+    assert np.abs(R.numpy() - expected).max() < 1e-9
+    assert np.abs(R.numpy()[:600] - expected[:600]).max() < 1e-12

