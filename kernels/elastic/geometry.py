@@ -36,7 +36,7 @@ def polar_rotation(F: wp.mat33d) -> wp.mat33d:
     """Rotation ``R`` (det +1) closest to ``F``. For ``det F > 0`` (an element not inverted), by
     Higham's scaled Newton iteration ``X <- (g X + X^-T / g) / 2``, ``g = (|X^-1| / |X|)^(1/2)``
     (Frobenius norms) from ``X = F``, which converges quadratically to the polar factor: the
-    SVD's ``R`` to round-off, three times faster (0.36 against 1.10 ms for 1432 elements on the
+    SVD's ``R`` to round-off, three times faster (0.34 against 1.10 ms for 1432 elements on the
     2-core VM's CPU device). For ``det F <= 0``, or if the iteration has not converged, from the
     SVD, with the smallest singular direction flipped so that ``R`` stays a rotation (inverted
     elements recover)."""

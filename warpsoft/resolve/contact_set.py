@@ -11,7 +11,8 @@ set ``S``: the actuator and attachment rows and the contacts that bore at the wa
 2. the correction ``e = e_free + A^-1 (s H^T lambda)`` (one solve) and the rigid bodies';
 3. every contact left out is checked against it: its normal delta to first order,
    ``delta_free + H (e - e_free) + J (d - d_free)``. Those it would let through (a gap below
-   ``-tolerance``) join ``S`` and the round repeats from 1, warm-started.
+   ``-PENETRATION`` times the largest free delta) join ``S`` and the round repeats from 1,
+   warm-started.
 
 At the end every contact outside ``S`` has no force and an open gap: Signorini's conditions
 hold for it, so the multipliers solve the whole problem (friction too: a contact without normal
