@@ -7,7 +7,8 @@ where ``r_k`` is the step's out-of-balance at ``dx_k`` without the rows' forces:
 
 with ``(c_v, c_f) = (h, h^2)`` in a dynamic step (kg m), ``(0, 1)`` quasi-static (N), and
 ``c_d = h b`` the Rayleigh stiffness damping (0 quasi-static). At ``dx = 0`` it is the step's
-usual right-hand side. The nonlinear residual adds the rows' forces, ``R = r + s H^T lambda``.
+usual right-hand side. The nonlinear residual adds the rows' forces, ``R = r + s H^T lambda``
+(``H^T lambda`` formed from the rows' entries, ``Rows.force_rows_forces``).
 """
 
 import warp as wp
@@ -16,16 +17,6 @@ from .linear.pcg import block_add, block_world, node_add
 
 SLOPE = wp.constant(0)  # sums[0, w, SLOPE]: R . e, e the iteration's correction
 NUM_SUMS = 1
-
-
-@wp.func
-def row_forces(rhs: wp.array2d(dtype=wp.vec3d), lam: wp.array(dtype=wp.float64), start: int, count: int, i: int):
-    """``sum_j lambda_j H_j^T`` at node ``i`` over a world's force rows, whose columns ``H_j^T``
-    are ``rhs[1 + j]`` (N, unscaled)."""
-    f = wp.vec3d()
-    for j in range(count):
-        f = f + lam[start + j] * rhs[1 + j, i]
-    return f
 
 
 @wp.kernel
@@ -40,19 +31,17 @@ def residual(
     c_v: wp.float64,
     c_f: wp.float64,
     mass_scale: wp.float64,
-    lam: wp.array(dtype=wp.float64),
-    world_row_start: wp.array(dtype=wp.int32),
-    world_force_rows: wp.array(dtype=wp.int32),
+    row_forces: wp.array(dtype=wp.vec3d),
     s: wp.float64,
     e: wp.array(dtype=wp.vec3d),
     world: wp.array(dtype=wp.int32),
     rhs: wp.array2d(dtype=wp.vec3d),
     sums: wp.array3d(dtype=wp.float64),
 ):
-    """``rhs[0] = r(dx)`` (the next solve's right-hand side) and, per world, ``R . e`` where the
-    rows' forces ``H_j^T`` are the actuator columns ``rhs[1 + j]`` at the same positions (``sums``
-    zeroed before). ``kdx`` is ``c_d K dx`` (zero without stiffness damping); ``mass`` is zero in
-    a quasi-static model."""
+    """``rhs[0] = r(dx)`` (the next solve's right-hand side) and, per world, ``R . e`` where
+    ``row_forces = H_f^T lambda`` (N) are the rows' forces at the same positions (``sums`` zeroed
+    before). ``kdx`` is ``c_d K dx`` (zero without stiffness damping); ``mass`` is zero in a
+    quasi-static model."""
     c, blk, lane = wp.tid()
     i0, i1, w, uniform = block_world(blk, rhs.shape[1], world)
     re = wp.float64(0.0)
@@ -63,8 +52,7 @@ def residual(
         b = wp.cw_mul(p, (c_v * mass[i]) * v0[i] - (mass_scale * mass[i]) * dx[i] + c_f * (f_int[i] + f_ext[i])
                       - kdx[i])
         rhs[0, i] = b
-        rows = row_forces(rhs, lam, world_row_start[wi], world_force_rows[wi], i)
-        r = b + s * wp.cw_mul(p, rows)
+        r = b + s * wp.cw_mul(p, row_forces[i])
         re = node_add(uniform, re, wp.dot(r, e[i]), sums, c, wi, SLOPE)
         i += wp.block_dim()
     block_add(re, lane, uniform, sums, c, w, SLOPE)
@@ -83,25 +71,23 @@ def start(v0: wp.array(dtype=wp.vec3d), mass: wp.array(dtype=wp.float64), f_int:
 def slope(
     rhs: wp.array2d(dtype=wp.vec3d),
     mask: wp.array(dtype=wp.vec3d),
-    lam: wp.array(dtype=wp.float64),
-    world_row_start: wp.array(dtype=wp.int32),
-    world_force_rows: wp.array(dtype=wp.int32),
+    row_forces: wp.array(dtype=wp.vec3d),
     s: wp.float64,
     e: wp.array(dtype=wp.vec3d),
     world: wp.array(dtype=wp.int32),
     sums: wp.array3d(dtype=wp.float64),
 ):
-    """``sums[0, w, SLOPE] = (r + s H^T lambda) . e`` at the iteration's linearization (``rhs``:
-    its right-hand side and columns), ``lambda`` the resolve's: ``e . A e``, the energy of the
-    correction, which ``R . e`` after the step is measured against (``sums`` zeroed before)."""
+    """``sums[0, w, SLOPE] = (r + s H^T lambda) . e`` at the iteration's linearization (``rhs[0]``:
+    its right-hand side; ``row_forces = H_f^T lambda`` (N), ``lambda`` the resolve's): ``e . A e``,
+    the energy of the correction, which ``R . e`` after the step is measured against (``sums``
+    zeroed before)."""
     c, blk, lane = wp.tid()
     i0, i1, w, uniform = block_world(blk, rhs.shape[1], world)
     re = wp.float64(0.0)
     i = i0 + lane
     while i < i1:
-        wi = world[i]
-        f = rhs[0, i] + s * row_forces(rhs, lam, world_row_start[wi], world_force_rows[wi], i)
-        re = node_add(uniform, re, wp.dot(wp.cw_mul(mask[i], f), e[i]), sums, c, wi, SLOPE)
+        f = rhs[0, i] + s * row_forces[i]
+        re = node_add(uniform, re, wp.dot(wp.cw_mul(mask[i], f), e[i]), sums, c, world[i], SLOPE)
         i += wp.block_dim()
     block_add(re, lane, uniform, sums, c, w, SLOPE)
 

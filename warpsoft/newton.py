@@ -96,16 +96,14 @@ class Newton:
         self.alpha = wp.array(self.alpha_host, dtype=wp.float64, device=d)
         self.mass = m.mass if m.mass is not None else wp.zeros(n, dtype=wp.float64, device=d)
         rows = sim.rows
-        if rows is not None and rows.num_columns:
+        self.actuated = rows is not None and rows.num_columns > 0  # rows that carry a force
+        if self.actuated:
             self.lam_base = wp.zeros(rows.num_rows, dtype=wp.float64, device=d)
             self.lam_full = wp.zeros(rows.num_rows, dtype=wp.float64, device=d)
             self.row_world = wp.array(np.repeat(np.arange(worlds), np.diff(rows.world_row_start)), dtype=wp.int32,
                                       device=d)
             self.delta_start = wp.zeros(rows.num_rows, dtype=wp.float64, device=d)  # rows at the step's start
-            self._rows = (sim.gauss_seidel.lam, rows.world_row_start_d, rows.world_force_rows)
-        else:
-            self._rows = (wp.zeros(1, dtype=wp.float64, device=d), wp.zeros(worlds + 1, dtype=wp.int32, device=d),
-                          wp.zeros(worlds, dtype=wp.int32, device=d))
+        self.row_forces = wp.zeros(n, dtype=wp.vec3d, device=d)  # H_f^T lambda (N): 0 without force rows
         self._reset_host()
 
     # ---- device work (captured in the step's graphs) --------------------------------------
@@ -147,10 +145,11 @@ class Newton:
         multipliers along the same fraction (the resolve's kept in ``lam_full``); ``retry``: the
         same correction along new fractions (the line search)."""
         sim, m = self.sim, self.sim.model
-        lam, starts, counts = self._rows
         if not retry:  # e . A e = (r + s H^T lambda) . e, at this iteration's linearization
             self.slope0.zero_()
-            launch_nodes(kernels.slope, 1, m.num_nodes, [sim.rhs, m.mask, lam, starts, counts, sim.constraint_scale,
+            if actuated:
+                sim.rows.force_rows_forces(sim.gauss_seidel.lam, 1.0, self.row_forces)
+            launch_nodes(kernels.slope, 1, m.num_nodes, [sim.rhs, m.mask, self.row_forces, sim.constraint_scale,
                                                          e, m.node_world, self.slope0], m.device)
             if sim.driven is not None and self.accepted == 0:  # the step's first correction: with the frames' move
                 wp.launch(kernels.prescribed_slope, m.num_nodes, inputs=[e, self.dx_base, sim.driven.a_dx,
@@ -175,10 +174,11 @@ class Newton:
             self.kdx.zero_()
             sim.elastic.apply(self.dx, self.kdx, sim.rot, self.c_d)
         self.sums.zero_()
-        lam, starts, counts = self._rows
+        if self.actuated:
+            sim.rows.force_rows_forces(sim.gauss_seidel.lam, 1.0, self.row_forces)
         launch_nodes(kernels.residual, 1, m.num_nodes,
                      [sim.state.v, self.mass, sim.f_int, sim.f_ext, self.kdx[0], self.dx[0], m.mask, self.c_v,
-                      self.c_f, sim.mass_scale, lam, starts, counts, sim.constraint_scale, e, m.node_world, sim.rhs,
+                      self.c_f, sim.mass_scale, self.row_forces, sim.constraint_scale, e, m.node_world, sim.rhs,
                       self.sums], m.device)
 
     # ---- host judgement -------------------------------------------------------------------
