@@ -1,5 +1,6 @@
-"""The lazy contact set (CPU, W from the factor): only the contacts that bear are resolved, the
-others checked against the correction; it must step exactly as resolving every contact does."""
+"""The lazy contact set (the Gauss-Seidel on the host's CPU): only the contacts that bear are
+resolved, the others checked against the correction (W from the factor) or their row of W (W from
+solved columns); it must step exactly as resolving every contact does."""
 
 import numpy as np
 import pytest
@@ -32,15 +33,19 @@ def sliding_block(scene_module):
     return scene, 30
 
 
+@pytest.mark.parametrize("solver", ["direct", "pcg"])
 @pytest.mark.parametrize("case", [hertz, cube_on_slab, sliding_block])
-def test_the_lazy_contact_set_steps_as_resolving_every_contact(scene_module, case):
+def test_the_lazy_contact_set_steps_as_resolving_every_contact(scene_module, case, solver):
     """Same trajectory (nodes and rigid poses) with and without the lazy set, with a Gauss-Seidel
     tolerance tight enough that each converges; the set is smaller than the contacts in use at
     some step and needs more than one round at some step (else the test would prove nothing),
-    and every contact left out ends with an open gap (Signorini holds for it: no force, gap >= 0)."""
+    and every contact left out ends with an open gap (Signorini holds for it: no force, gap >= 0).
+    ``direct``: W from the factor, between the set's rows only; ``pcg``: W from solved columns
+    (what the CUDA path reads), tight enough that both runs' solves agree to round-off."""
     def make(lazy):
         scene, steps = case(scene_module)
-        sim = ws.Simulator(scene, device="cpu", lazy_contacts=lazy)
+        sim = ws.Simulator(scene, device="cpu", solver=solver, tolerance=1e-6 if solver == "direct" else 1e-11,
+                           lazy_contacts=lazy)
         sim.gauss_seidel.tolerance, sim.gauss_seidel.max_iterations = 1e-13, 20000
         return sim, steps
 
@@ -66,10 +71,12 @@ def test_the_lazy_contact_set_steps_as_resolving_every_contact(scene_module, cas
     assert smaller and rounds >= 2
 
 
-def test_the_lazy_set_is_only_where_w_comes_from_the_factor(scene_module):
-    """Not on the other solvers, not in an inverse-model world (its QPCC reads W whole)."""
+def test_the_lazy_set_is_only_where_the_host_sweeps_direct_worlds(scene_module):
+    """On the CPU device, whatever the solver; not in an inverse-model world (its QPCC reads W
+    whole); not when asked not to."""
     scene, _ = sliding_block(scene_module)
-    assert ws.Simulator(scene, device="cpu", solver="pcg").contact_set is None
+    assert ws.Simulator(scene, device="cpu", solver="pcg").contact_set is not None
+    assert ws.Simulator(scene, device="cpu", lazy_contacts=False).contact_set is None
     trunk = scene_module("scenes/trunk.py").build(obstacles=True)
     assert ws.Simulator(trunk, device="cpu").contact_set is None
     assert contact_set.MAX_ROUNDS >= 2

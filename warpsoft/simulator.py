@@ -73,9 +73,11 @@ class Simulator:
             correction's own (``|R . e| / e . A e``, see :mod:`warpsoft.newton`), at which a world's
             step is done; above it after ``newton_iterations``, the step warns.
         line_search: most shortened retries of a Newton step that overshot (0: full steps only).
-        lazy_contacts: ``direct`` on the CPU device, direct model with contacts: resolve only the
-            contacts that bear, found lazily (:mod:`warpsoft.resolve.contact_set`); False forms
-            ``W`` between every contact in contact distance (the same solution, for comparison).
+        lazy_contacts: direct model with contacts, Gauss-Seidel on the host's CPU (the CPU device;
+            on CUDA, between two graphs): resolve only the contacts that bear, found lazily
+            (:mod:`warpsoft.resolve.contact_set`). With ``direct`` on the CPU, ``W`` is formed
+            between them alone; elsewhere ``W`` holds every contact and only the sweeps shrink.
+            False resolves every contact in contact distance (the same solution, for comparison).
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
@@ -180,10 +182,11 @@ class Simulator:
         if getattr(self.solver, "factor_compliance", False) and ncol:  # the correction's solve (no columns X)
             self.row_force = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # s H^T lambda (N)
             self.row_motion = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # A^-1 of it (m)
-        # the CPU path resolves the contacts that bear, found lazily, where W comes from the factor
+        # the Gauss-Seidel on the host's CPU (the CPU device, or between two graphs on CUDA) resolves
+        # the contacts that bear, found lazily
         self.contact_set = None
-        if (lazy_contacts and getattr(self.solver, "factor_compliance", False) and ncol
-                and self.rows.kind("contact") is not None and not inverse_worlds):
+        if (lazy_contacts and ncol and self.rows.kind("contact") is not None and not inverse_worlds
+                and (d.is_cpu or self.host_gauss_seidel)):
             self.contact_set = ContactSet(self)
         self.solve_result = None  # the last solve's outcome, when it ran outside a graph
         self.newton = Newton(self, newton_iterations, newton_tolerance, line_search)

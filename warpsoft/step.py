@@ -385,7 +385,14 @@ def resolve_on_device(sim: Simulator) -> None:
         sim.contact_set.resolve(lambda: correct_by_one_solve(sim))
         return
     if any(not s.inverse for s in sim.model.scenes) and not sim.host_gauss_seidel:
-        sim.gauss_seidel.solve(rows.W, rows.delta_free, start)
+        if sim.contact_set is not None:  # the CPU device: the lazy set on W's arrays in place
+            gs = sim.gauss_seidel
+            sim.contact_set.resolve_columns({"W": rows.W.numpy(), "delta_free": rows.delta_free.numpy(),
+                                             "delta": start.numpy(), "lam": gs.lam.numpy(),
+                                             "force_rows": rows.world_force_rows.numpy(),
+                                             "friction": gs.friction.numpy()})
+        else:
+            sim.gauss_seidel.solve(rows.W, rows.delta_free, start)
     if sim.device_inverse is not None:
         sim.device_inverse.solve(rows.W, rows.delta_free, start, sim.gauss_seidel.inputs, sim.gauss_seidel.lam)
 
@@ -394,7 +401,9 @@ def resolve_on_host(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray
     """Between the two graphs, from one read (``host``): the direct-model worlds' Gauss-Seidel
     when it runs on the host, then the inverse-model worlds' QPs; the multipliers go back in one
     copy."""
-    if sim.host_gauss_seidel:
+    if sim.host_gauss_seidel and sim.contact_set is not None:  # (no inverse world then)
+        sim.contact_set.resolve_columns(host)
+    elif sim.host_gauss_seidel:
         sim.gauss_seidel.solve_host(host)
     if any(s.inverse for s in sim.model.scenes) and sim.device_inverse is None:
         resolve_inverse(sim, stats, host)

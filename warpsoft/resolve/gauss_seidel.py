@@ -139,21 +139,30 @@ class GaussSeidel:
             self.inputs.assign(self.host)
             self._uploaded = values.copy()
 
-    def solve_host(self, host: dict[str, np.ndarray]) -> None:
-        """The same sweeps on the host (Warp's CPU device), from the arrays of one read ``host``
-        (``W``, ``delta_free``, ``delta`` at the step's start, ``lam``, ``force_rows``,
-        ``friction``): ``host["lam"]`` is updated in place and the sweeps' ``result`` copied to the
-        device. On CUDA, one thread per world sweeping many contact rows runs at its single
-        thread's latency (docs/performance.md)."""
-        rows, cpu = self.rows, "cpu"
+    def host_arrays(self) -> dict:
+        """The per-world arrays of a sweep on Warp's CPU device (the row starts, which worlds
+        sweep, ``result``, the counts, the bilateral factor and its work vector): the device's
+        own on the CPU, copies made once on CUDA (then ``result`` must be copied back)."""
+        if self.rows.device.is_cpu:
+            return {"row_start": self.rows.world_row_start_d, "direct": self.direct, "result": self.result,
+                    "counts": self.counts, "factor": self.factor, "work": self.work}
         if self._cpu is None:  # what does not change from step to step, on the host once
+            cpu, rows = "cpu", self.rows
             self._cpu = {"row_start": wp.array(rows.world_row_start, dtype=wp.int32, device=cpu),
                          "direct": wp.array(self.direct.numpy(), dtype=wp.int32, device=cpu),
                          "result": wp.zeros((rows.num_worlds, 3), dtype=wp.float64, device=cpu),
                          "counts": tuple(wp.array(c.numpy(), dtype=wp.int32, device=cpu) for c in self.counts),
                          "factor": wp.zeros(self.factor.shape, dtype=wp.float64, device=cpu),
                          "work": wp.zeros(self.work.shape, dtype=wp.float64, device=cpu)}
-        c = self._cpu
+        return self._cpu
+
+    def solve_host(self, host: dict[str, np.ndarray]) -> None:
+        """The same sweeps on the host (Warp's CPU device), from the arrays of one read ``host``
+        (``W``, ``delta_free``, ``delta`` at the step's start, ``lam``, ``force_rows``,
+        ``friction``): ``host["lam"]`` is updated in place and the sweeps' ``result`` copied to the
+        device. On CUDA, one thread per world sweeping many contact rows runs at its single
+        thread's latency (docs/performance.md)."""
+        c, cpu = self.host_arrays(), "cpu"
         f64 = lambda a: wp.array(a, dtype=wp.float64, device=cpu)  # noqa: E731
         lam = f64(host["lam"])
         self._launch(f64(host["W"]), f64(host["delta_free"]), f64(host["delta"]), f64(self.host), c["row_start"],
