@@ -77,6 +77,7 @@ class SparseDirect:
         if not len(used):
             return
         z = self.factor.forward(dof[keep], column, h_coef[keep], len(used))
+        zz = scale * (z.T @ z).toarray()  # every pair of Z's columns (a few dozen: dense is cheap)
         place = np.full(rows.num_rows, -1)
         place[used] = np.arange(len(used))
         force_rows = rows.world_force_rows.numpy()
@@ -86,4 +87,4 @@ class SparseDirect:
             f = place[s:s + int(force_rows[w])]  # its force rows in use, as columns
             cols = np.flatnonzero(f >= 0)
             if len(mine) and len(cols):
-                W[np.ix_(mine, cols)] = scale * (z[:, place[mine]].T @ z[:, f[cols]]).toarray()
+                W[np.ix_(mine, cols)] = zz[np.ix_(place[mine], f[cols])]
