@@ -17,6 +17,7 @@ import warp as wp
 
 from warpsoft.kernels import drive as kernels
 
+from .launch import launch
 from .scene.obstacles import pose_of
 
 
@@ -56,7 +57,7 @@ class DrivenNodes:
         """The step starts with the driven nodes' move in ``dx`` (``(1, n)``, from ``q``) and its
         pull on the free nodes taken off ``rhs[0]`` (device; capturable)."""
         m = self.model
-        wp.launch(kernels.prescribe, len(self.rest), inputs=[self.ids, self.target, self.axes, q], outputs=[dx],
-                  device=m.device)
+        launch(kernels.prescribe, len(self.rest), inputs=[self.ids, self.target, self.axes, q], outputs=[dx],
+               device=m.device)
         operator.apply(dx, self.a_dx)
-        wp.launch(kernels.lift_rhs, m.num_nodes, inputs=[mask, self.a_dx], outputs=[rhs], device=m.device)
+        launch(kernels.lift_rhs, m.num_nodes, inputs=[mask, self.a_dx], outputs=[rhs], device=m.device)

@@ -19,6 +19,7 @@ import warp as wp
 from warpsoft.kernels.elastic import geometry
 
 from .errors import SceneError, call_user
+from .launch import launch
 from .mapping import locate
 from .scene import Scene, load_weights
 from .state import State
@@ -112,8 +113,8 @@ class Model:
         self.poisson_np = lam_np / (2.0 * (lam_np + mu_np))  # per element, from the Lame parameters
         self.dm_inv = wp.zeros(self.num_elements, dtype=wp.mat33d, device=d)
         self.volume = wp.zeros(self.num_elements, dtype=wp.float64, device=d)
-        wp.launch(geometry.tet_rest_shape, self.num_elements, inputs=[self.rest, self.tets],
-                  outputs=[self.dm_inv, self.volume], device=d)
+        launch(geometry.tet_rest_shape, self.num_elements, inputs=[self.rest, self.tets],
+               outputs=[self.dm_inv, self.volume], device=d)
 
         # gravity per node: each world its own
         g = np.array([s.gravity for s in self.scenes])[self.node_world_np]  # (n, 3) m/s^2
@@ -122,8 +123,8 @@ class Model:
         if not self.static or self.has_gravity:  # mass exists whenever something needs it
             density = wp.array(np.concatenate(rho), dtype=wp.float64, device=d)
             self.mass = wp.zeros(self.num_nodes, dtype=wp.float64, device=d)
-            wp.launch(geometry.lumped_mass, self.num_elements, inputs=[self.tets, self.volume, density],
-                      outputs=[self.mass], device=d)
+            launch(geometry.lumped_mass, self.num_elements, inputs=[self.tets, self.volume, density],
+                   outputs=[self.mass], device=d)
             self.mass_np = self.mass.numpy()
             if not self.static and np.any(self.mass_np <= 0):
                 i = int(np.argmin(self.mass_np))

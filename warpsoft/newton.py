@@ -44,6 +44,7 @@ from warpsoft.kernels import newton as kernels
 from warpsoft.kernels.linear.pcg import launch_nodes
 
 from .errors import SceneError
+from .launch import launch
 
 if TYPE_CHECKING:
     from .simulator import Simulator
@@ -111,7 +112,7 @@ class Newton:
         """Run ``linearize`` (at ``q``) unless the last linearization was made at ``q`` already."""
         m = self.sim.model
         self.moved.zero_()
-        wp.launch(kernels.moved, m.num_nodes, inputs=[q, self.q_lin], outputs=[self.moved], device=m.device)
+        launch(kernels.moved, m.num_nodes, inputs=[q, self.q_lin], outputs=[self.moved], device=m.device)
         wp.capture_if(self.moved, on_true=linearize)
 
     def linearized_at(self, q: wp.array) -> None:
@@ -123,16 +124,16 @@ class Newton:
         first solve's right-hand side ``r(0)`` (less the move's pull on the free nodes)."""
         sim, m = self.sim, self.sim.model
         self.dx.zero_()
-        wp.launch(kernels.start, m.num_nodes, inputs=[sim.state.v, self.mass, sim.f_int, sim.f_ext, m.mask, self.c_v,
-                                                       self.c_f], outputs=[sim.rhs], device=m.device)
+        launch(kernels.start, m.num_nodes, inputs=[sim.state.v, self.mass, sim.f_int, sim.f_ext, m.mask, self.c_v,
+                                                    self.c_f], outputs=[sim.rhs], device=m.device)
         if sim.driven is not None:  # the kinematic frames' nodes: their move is known
             sim.driven.prescribe(sim.state.q, self.dx, sim.rhs, sim.operator, m.mask)
 
     def hold_done_worlds(self) -> None:
         """Worlds done iterating get no correction (their first solve column is 0)."""
         m = self.sim.model
-        wp.launch(kernels.hold_done_worlds, m.num_nodes, inputs=[self.alpha, m.node_world],
-                  outputs=[self.sim.rhs, self.sim.sol], device=m.device)
+        launch(kernels.hold_done_worlds, m.num_nodes, inputs=[self.alpha, m.node_world],
+               outputs=[self.sim.rhs, self.sim.sol], device=m.device)
 
     def accept(self, actuated: bool) -> None:
         """An iteration begins from the step so far and its multipliers."""
@@ -152,17 +153,17 @@ class Newton:
             launch_nodes(kernels.slope, 1, m.num_nodes, [sim.rhs, m.mask, self.row_forces, sim.constraint_scale,
                                                          e, m.node_world, self.slope0], m.device)
             if sim.driven is not None and self.accepted == 0:  # the step's first correction: with the frames' move
-                wp.launch(kernels.prescribed_slope, m.num_nodes, inputs=[e, self.dx_base, sim.driven.a_dx,
-                                                                         m.node_world, self.slope0], device=m.device)
+                launch(kernels.prescribed_slope, m.num_nodes, inputs=[e, self.dx_base, sim.driven.a_dx,
+                                                                      m.node_world, self.slope0], device=m.device)
         if actuated and not retry:
             wp.copy(self.lam_full, sim.gauss_seidel.lam)
         if actuated:
-            wp.launch(kernels.blend_multipliers, sim.rows.num_rows,
-                      inputs=[self.lam_base, self.lam_full, self.alpha, self.row_world],
-                      outputs=[sim.gauss_seidel.lam], device=m.device)
-        wp.launch(kernels.update, m.num_nodes,
-                  inputs=[sim.state.q, self.dx_base, e, self.alpha, m.node_world, 0.0 if m.static else 1.0 / m.dt],
-                  outputs=[self.dx[0], sim.next.q, sim.next.v], device=m.device)
+            launch(kernels.blend_multipliers, sim.rows.num_rows,
+                   inputs=[self.lam_base, self.lam_full, self.alpha, self.row_world],
+                   outputs=[sim.gauss_seidel.lam], device=m.device)
+        launch(kernels.update, m.num_nodes,
+               inputs=[sim.state.q, self.dx_base, e, self.alpha, m.node_world, 0.0 if m.static else 1.0 / m.dt],
+               outputs=[self.dx[0], sim.next.q, sim.next.v], device=m.device)
         if sim.rigid is not None:  # the rigid bodies along the same fraction
             sim.rigid.advance(sim.state, sim.next, self.alpha)
 

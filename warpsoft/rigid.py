@@ -17,6 +17,8 @@ import warp as wp
 
 from warpsoft.kernels import rigid as kernels
 
+from .launch import launch
+
 
 class RigidBodies:
     """The step's rigid-body buffers (device, ``(bodies,)`` unless said): ``inv_inertia_w``
@@ -41,7 +43,7 @@ class RigidBodies:
         self.names = [(w, rb.name) for w, rb in model.rigid]
 
     def _launch(self, kernel, dim, inputs) -> None:
-        wp.launch(kernel, dim, inputs=inputs, device=self.model.device)
+        launch(kernel, dim, inputs=inputs, device=self.model.device)
 
     # ---- the step's stages (device; capturable) ------------------------------------------
     def start(self, state) -> None:

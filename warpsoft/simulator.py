@@ -15,6 +15,7 @@ from . import step as stepping
 from .drive import DrivenNodes
 from .elastic import element_model
 from .errors import SceneError, SimulationError
+from .launch import launch
 from .linear import SOLVERS, SystemOperator, choose, make_solver
 from .model import Model
 from .newton import Newton
@@ -329,8 +330,8 @@ class Simulator:
         if m.probe_nodes is None:
             return {}
         out = wp.zeros(len(m.probe_names), dtype=wp.vec3d, device=m.device)
-        wp.launch(mapping.interpolate_points, len(m.probe_names),
-                  inputs=[(state or self.state).q, m.probe_nodes, m.probe_weights], outputs=[out], device=m.device)
+        launch(mapping.interpolate_points, len(m.probe_names),
+               inputs=[(state or self.state).q, m.probe_nodes, m.probe_weights], outputs=[out], device=m.device)
         if world is None and m.num_worlds > 1:
             raise SceneError(f"probe_positions: this model has {m.num_worlds} worlds: say which (world=...)")
         return {name: p for name, p, w in zip(m.probe_names, out.numpy(), m.probe_world, strict=True)
@@ -350,8 +351,8 @@ class Simulator:
         acc = wp.zeros(2, dtype=wp.float64, device=m.device)
         self.elastic.energy(s.q, acc[0:1])
         if m.mass is not None and not m.static:
-            wp.launch(integrate.kinetic_energy, m.num_nodes, inputs=[s.v, m.mass], outputs=[acc[1:2]],
-                      device=m.device)
+            launch(integrate.kinetic_energy, m.num_nodes, inputs=[s.v, m.mass], outputs=[acc[1:2]],
+                   device=m.device)
         elastic, kinetic = (float(v) for v in acc.numpy())
         potential = 0.0
         if m.has_gravity:

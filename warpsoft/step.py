@@ -23,6 +23,7 @@ from warpsoft.kernels.rows import common as row_kernels
 
 from . import watch
 from .errors import SceneError, SimulationError
+from .launch import launch
 from .resolve import RowInputs, solve_inverse
 from .resolve.qpcc import ContactQP, solve_inverse_contacts
 from .state import Control
@@ -280,8 +281,8 @@ def correct_by_one_solve(sim: Simulator) -> None:
     keeps the second term), and the rigid bodies' correction."""
     sim.rows.force_rows_forces(sim.gauss_seidel.lam, sim.constraint_scale, sim.row_force[0])
     sim.solver.solve(sim.row_force, sim.row_motion)
-    wp.launch(row_kernels.add_motion, sim.model.num_nodes, inputs=[sim.dx_free[0], sim.row_motion[0]],
-              outputs=[sim.dx], device=sim.model.device)
+    launch(row_kernels.add_motion, sim.model.num_nodes, inputs=[sim.dx_free[0], sim.row_motion[0]],
+           outputs=[sim.dx], device=sim.model.device)
     if sim.rigid is not None:
         sim.rigid.correct(sim.gauss_seidel.lam, sim.constraint_scale)
 
@@ -298,13 +299,13 @@ def relinearize(sim: Simulator, actuated: bool) -> None:
     sim.newton.residual(correction(sim, actuated, make=False))
     sim.health_flag.zero_()
     sim.health_step.zero_()
-    wp.launch(linalg.step_health, m.num_nodes, inputs=[q, sim.newton.dx[0]],
-              outputs=[sim.health_flag, sim.health_step], device=m.device)
+    launch(linalg.step_health, m.num_nodes, inputs=[q, sim.newton.dx[0]],
+           outputs=[sim.health_flag, sim.health_step], device=m.device)
     if sim.rigid is not None:
         sim.rigid.linearize(sim.next, sim.health_flag)
     sim.inverted.zero_()
-    wp.launch(geometry.count_inverted, m.num_elements, inputs=[q, m.tets, m.dm_inv, m.elem_world],
-              outputs=[sim.inverted], device=m.device)
+    launch(geometry.count_inverted, m.num_elements, inputs=[q, m.tets, m.dm_inv, m.elem_world],
+           outputs=[sim.inverted], device=m.device)
 
 
 def finish_solve(sim: Simulator, stats: StepStats, res) -> None:

@@ -12,6 +12,8 @@ import warp as wp
 
 from warpsoft.kernels.elastic import corotational as kernels
 
+from ..launch import launch
+
 
 class Corotational:
     """The corotational element model of a :class:`~warpsoft.model.Model`.
@@ -33,29 +35,29 @@ class Corotational:
         """Rotations ``rot`` at positions ``q`` (m) and the internal forces (N) accumulated into
         ``force`` (``(n,)`` vec3d, zeroed by the caller)."""
         m = self.model
-        wp.launch(kernels.corotational_forces, m.num_elements, inputs=[q, m.tets, *self._material()],
-                  outputs=[rot, force], device=m.device)
+        launch(kernels.corotational_forces, m.num_elements, inputs=[q, m.tets, *self._material()],
+               outputs=[rot, force], device=m.device)
 
     def apply(self, x: wp.array, y: wp.array, rot: wp.array, scale: float) -> None:
         """``y[c] += scale K x[c]`` for ``(k, n)`` vec3d ``x`` and ``y`` (N per m of ``x``)."""
         m = self.model
-        wp.launch(kernels.stiffness_product, (x.shape[0], m.num_elements),
-                  inputs=[x, m.tets, *self._material(), rot, scale], outputs=[y], device=m.device)
+        launch(kernels.stiffness_product, (x.shape[0], m.num_elements),
+               inputs=[x, m.tets, *self._material(), rot, scale], outputs=[y], device=m.device)
 
     def diagonal(self, rot: wp.array, diag: wp.array) -> None:
         """Accumulate the 3x3 diagonal blocks of ``K`` (N/m) per node into ``diag`` ``(n,)`` mat33d."""
         m = self.model
-        wp.launch(kernels.stiffness_diagonal, m.num_elements, inputs=[m.tets, *self._material(), rot],
-                  outputs=[diag], device=m.device)
+        launch(kernels.stiffness_diagonal, m.num_elements, inputs=[m.tets, *self._material(), rot],
+               outputs=[diag], device=m.device)
 
     def blocks(self, rot: wp.array, blocks: wp.array) -> None:
         """The sixteen 3x3 blocks (N/m) of each element's ``K``, ``(16 elements,)`` mat33d."""
         m = self.model
-        wp.launch(kernels.stiffness_blocks, m.num_elements, inputs=[*self._material(), rot], outputs=[blocks],
-                  device=m.device)
+        launch(kernels.stiffness_blocks, m.num_elements, inputs=[*self._material(), rot], outputs=[blocks],
+               device=m.device)
 
     def energy(self, q: wp.array, out: wp.array) -> None:
         """Accumulate the elastic energy (J) at positions ``q`` into ``out[0]``."""
         m = self.model
-        wp.launch(kernels.elastic_energy, m.num_elements, inputs=[q, m.tets, *self._material()], outputs=[out],
-                  device=m.device)
+        launch(kernels.elastic_energy, m.num_elements, inputs=[q, m.tets, *self._material()], outputs=[out],
+               device=m.device)

@@ -16,6 +16,7 @@ import warp as wp
 
 from warpsoft.kernels.linear import cg as linalg
 
+from ..launch import launch
 from .operator import SystemOperator
 
 
@@ -33,9 +34,9 @@ class BlockJacobi:
         m, op = self.op.model, self.op
         self.kdiag.zero_()
         op.elastic.diagonal(op.rot, self.kdiag)
-        wp.launch(linalg.block_jacobi_inverse, m.num_nodes,
-                  inputs=[self.kdiag, self._mass, op.mass_scale, op.stiffness_scale, m.mask],
-                  outputs=[self.inverse], device=m.device)
+        launch(linalg.block_jacobi_inverse, m.num_nodes,
+               inputs=[self.kdiag, self._mass, op.mass_scale, op.stiffness_scale, m.mask],
+               outputs=[self.inverse], device=m.device)
 
 
 @dataclass
@@ -95,13 +96,13 @@ class BlockJacobiCG:
         warm start on entry (its fixed DOFs are zeroed)."""
         m, d, shape = self.op.model, self.op.model.device, self.r.shape
         pre = self.precond.inverse
-        wp.launch(linalg.project, shape, inputs=[m.mask], outputs=[x], device=d)
+        launch(linalg.project, shape, inputs=[m.mask], outputs=[x], device=d)
         self.op.apply(x, self.ap)
         self.scal.zero_()
-        wp.launch(linalg.cg_start, shape, inputs=[b, self.ap, m.mask, pre, self.r, self.z, self.p, self.one_world],
-                  outputs=[self.scal],
-                  device=d)
-        wp.launch(linalg.cg_clear_zero_columns, shape, inputs=[self.one_world, self.scal, x, self.p], device=d)
+        launch(linalg.cg_start, shape, inputs=[b, self.ap, m.mask, pre, self.r, self.z, self.p, self.one_world],
+               outputs=[self.scal],
+               device=d)
+        launch(linalg.cg_clear_zero_columns, shape, inputs=[self.one_world, self.scal, x, self.p], device=d)
         rel = self._relative()
         it = 0
         while rel > self.tolerance and math.isfinite(rel) and it < self.max_iterations:
@@ -125,10 +126,10 @@ class BlockJacobiCG:
         """One CG iteration, all on the device: ``A p``, ``alpha``, ``x``, ``r``, ``z``, ``beta``, ``p``."""
         m, d, shape = self.op.model, self.op.model.device, self.r.shape
         self.op.apply(self.p, self.ap)
-        wp.launch(linalg.cg_curvature, shape, inputs=[self.p, self.ap, m.mask, self.one_world], outputs=[self.scal],
-                  device=d)
-        wp.launch(linalg.cg_update, shape,
-                  inputs=[x, self.r, self.z, self.p, self.ap, self.precond.inverse, self.one_world],
-                  outputs=[self.scal], device=d)
-        wp.launch(linalg.cg_scalars, self.scal.shape[:2], inputs=[self.scal], device=d)
-        wp.launch(linalg.cg_direction, shape, inputs=[self.z, self.p, self.one_world, self.scal], device=d)
+        launch(linalg.cg_curvature, shape, inputs=[self.p, self.ap, m.mask, self.one_world], outputs=[self.scal],
+               device=d)
+        launch(linalg.cg_update, shape,
+               inputs=[x, self.r, self.z, self.p, self.ap, self.precond.inverse, self.one_world],
+               outputs=[self.scal], device=d)
+        launch(linalg.cg_scalars, self.scal.shape[:2], inputs=[self.scal], device=d)
+        launch(linalg.cg_direction, shape, inputs=[self.z, self.p, self.one_world, self.scal], device=d)

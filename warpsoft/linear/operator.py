@@ -7,6 +7,7 @@ import warp as wp
 from warpsoft.kernels.linear import cg as linalg
 
 from ..elastic import element_model
+from ..launch import launch
 from ..model import Model
 
 
@@ -32,8 +33,8 @@ class SystemOperator:
     def apply(self, x: wp.array, y: wp.array) -> None:
         m = self.model
         if self.mass_scale != 0.0:
-            wp.launch(linalg.mass_product, x.shape, inputs=[x, m.mass, self.mass_scale], outputs=[y],
-                      device=m.device)
+            launch(linalg.mass_product, x.shape, inputs=[x, m.mass, self.mass_scale], outputs=[y],
+                   device=m.device)
         else:
             y.zero_()
         self.elastic.apply(x, y, self.rot, self.stiffness_scale)

@@ -24,6 +24,7 @@ import warp as wp
 from warpsoft.kernels.linear import cg as slots
 from warpsoft.kernels.linear import pcg as kernels
 
+from ..launch import launch
 from .operator import SystemOperator
 
 SIZES = (8, 32, 64, 128)  # right-hand sides a bounded CUDA solve is captured for (then every k)
@@ -152,8 +153,8 @@ class PCG:
         elif not self.branches:  # (the CPU device: the count is host memory)
             self._columns(b, x, min(k, self.offset + int(self.count.numpy()[0])))
         else:  # one branch runs: the smallest size that holds the count (clamped to k)
-            wp.launch(kernels.pick_size, 1, inputs=[self.count, self.offset, self.sizes_d, k], outputs=[self.branch],
-                      device=d)
+            launch(kernels.pick_size, 1, inputs=[self.count, self.offset, self.sizes_d, k], outputs=[self.branch],
+                   device=d)
             for j, size in enumerate(self.sizes):
                 wp.capture_if(self.branch[j:j + 1], self._columns, b=b, x=x, k=min(size, k))
 
@@ -163,7 +164,7 @@ class PCG:
         n = m.num_nodes
         b, x = b[:k], x[:k]
         r, z, p, ap, scal = self.r[:k], self.z[:k], self.p[:k], self.ap[:k], self.scal[:k]
-        wp.launch(slots.project, (k, n), inputs=[m.mask], outputs=[x], device=d)
+        launch(slots.project, (k, n), inputs=[m.mask], outputs=[x], device=d)
         self.op.apply(x, ap)
         self.active.zero_()
         kernels.launch_nodes(kernels.pcg_residual, k, n, [b, ap, m.mask, r, m.node_world, scal], d)
@@ -183,9 +184,9 @@ class PCG:
         kernels.launch_nodes(kernels.pcg_update, k, n, [x, r, p, ap, m.node_world, scal], d)
         self.precond.apply(r, z)
         kernels.launch_nodes(kernels.pcg_rz, k, n, [r, z, m.node_world, scal], d)
-        wp.launch(kernels.pcg_direction, (k, n), inputs=[z, p, m.node_world, scal], outputs=[self.active], device=d)
+        launch(kernels.pcg_direction, (k, n), inputs=[z, p, m.node_world, scal], outputs=[self.active], device=d)
         self._scalars(scal, 1)
 
     def _scalars(self, scal: wp.array, advance: int) -> None:
-        wp.launch(kernels.pcg_scalars, scal.shape[:2], inputs=[scal, self.tolerance, self.max_iterations, advance],
-                  outputs=[self.info, self.active], device=self.op.model.device)
+        launch(kernels.pcg_scalars, scal.shape[:2], inputs=[scal, self.tolerance, self.max_iterations, advance],
+               outputs=[self.info, self.active], device=self.op.model.device)

@@ -27,6 +27,7 @@ import warp as wp
 
 from warpsoft.kernels.linear import warped as kernels
 
+from ..launch import launch
 from .assembly import Assembly, CholmodFactor, solve_dofs
 from .operator import SystemOperator
 
@@ -131,10 +132,10 @@ class WarpedFactor:
         """Per linearization: node rotations from the element rotations; refactorize if due."""
         m = self.op.model
         self.node_sum.zero_()
-        wp.launch(kernels.accumulate_node_rotations, m.num_elements, inputs=[m.tets, m.volume, self.op.rot],
-                  outputs=[self.node_sum], device=m.device)
-        wp.launch(kernels.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
-                  outputs=[self.node_rot, self.q_rot], device=m.device)
+        launch(kernels.accumulate_node_rotations, m.num_elements, inputs=[m.tets, m.volume, self.op.rot],
+               outputs=[self.node_sum], device=m.device)
+        launch(kernels.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
+               outputs=[self.node_rot, self.q_rot], device=m.device)
         if self._stale:
             self.refresh()
 
@@ -143,8 +144,8 @@ class WarpedFactor:
         m = self.op.model
         self.factor.factorize(self.assembly.values())
         wp.copy(self.frame, self.node_rot)
-        wp.launch(kernels.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
-                  outputs=[self.node_rot, self.q_rot], device=m.device)
+        launch(kernels.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
+               outputs=[self.node_rot, self.q_rot], device=m.device)
         if self.mode == "dense":
             free = self.assembly.free
             dense = np.zeros((self.padded, self.padded))
@@ -176,21 +177,21 @@ class WarpedFactor:
         k = shape[0]
         if self.mode == "dense" and self._streams(k):
             _, rotate_in, partial_product, rotate_out = kernels.stream_kernels(k, self.dtype, *self.stream)
-            wp.launch(rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
-            wp.launch(partial_product, (self.stream[0], self.padded // self.stream[2]),
-                      inputs=[self._inverse_wide, self.u, self.segment], outputs=[self.partials], device=d)
-            wp.launch(rotate_out, shape, inputs=[self.partials, self.q_rot, m.mask], outputs=[z], device=d)
+            launch(rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
+            launch(partial_product, (self.stream[0], self.padded // self.stream[2]),
+                   inputs=[self._inverse_wide, self.u, self.segment], outputs=[self.partials], device=d)
+            launch(rotate_out, shape, inputs=[self.partials, self.q_rot, m.mask], outputs=[z], device=d)
             return
         if self.mode == "dense":
-            wp.launch(self._rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
+            launch(self._rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[self.u], device=d)
             if self.tiles[3] > 1:
                 self.y.zero_()  # the splits add into it
             product = kernels.dense_product(k, self.dtype, self.tiles[0], self.tiles[1], self.tiles[3])
             wp.launch_tiled(product, dim=[self.padded // self.tiles[0], self.tiles[3]],
                             inputs=[self.inverse, self.u], outputs=[self.y], block_dim=self.tiles[2], device=d)
-            wp.launch(self._rotate_out, shape, inputs=[self.y, self.q_rot, m.mask], outputs=[z], device=d)
+            launch(self._rotate_out, shape, inputs=[self.y, self.q_rot, m.mask], outputs=[z], device=d)
             return
         u, y = self.u[:k], self.y[:k]
-        wp.launch(kernels.rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[u], device=d)
+        launch(kernels.rotate_in, shape, inputs=[r, self.q_rot, m.mask], outputs=[u], device=d)
         y.assign(solve_dofs(self.factor, u.numpy().reshape(k, -1)).reshape(k, -1, 3))
-        wp.launch(kernels.rotate_out, shape, inputs=[y, self.q_rot, m.mask], outputs=[z], device=d)
+        launch(kernels.rotate_out, shape, inputs=[y, self.q_rot, m.mask], outputs=[z], device=d)

@@ -39,6 +39,8 @@ import warp as wp
 from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
 from warpsoft.kernels.rows import common as row_kernels
 
+from ..launch import launch
+
 if TYPE_CHECKING:
     from ..simulator import Simulator
 
@@ -194,6 +196,6 @@ class ContactSet:
         rows it needs)."""
         sim, rows = self.sim, self.rows
         wp.copy(self.predicted, rows.delta_free)
-        wp.launch(row_kernels.rows_times_vector, rows.num_entries,
-                  inputs=[rows.h_row, rows.h_node, rows.h_coef, sim.row_motion, 0], outputs=[self.predicted],
-                  device=rows.device)
+        launch(row_kernels.rows_times_vector, rows.num_entries,
+               inputs=[rows.h_row, rows.h_node, rows.h_coef, sim.row_motion, 0], outputs=[self.predicted],
+               device=rows.device)

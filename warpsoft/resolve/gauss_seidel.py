@@ -19,6 +19,8 @@ import warp as wp
 
 from warpsoft.kernels.resolve import gauss_seidel as kernels
 
+from ..launch import launch
+
 
 @dataclass
 class RowInputs:
@@ -174,9 +176,9 @@ class GaussSeidel:
     def _launch(self, W, delta_free, delta_now, inputs, row_start, force_rows, direct, friction, lam, result,
                 counts, factor, work) -> None:
         """The sweeps, on the device the arrays live on."""
-        wp.launch(kernels.projected_gauss_seidel, self.rows.num_worlds,
-                  inputs=[W, delta_free, delta_now, inputs, row_start, force_rows, direct, friction, *counts,
-                          self.max_iterations, self.tolerance], outputs=[lam, result, factor, work], device=lam.device)
+        launch(kernels.projected_gauss_seidel, self.rows.num_worlds,
+               inputs=[W, delta_free, delta_now, inputs, row_start, force_rows, direct, friction, *counts,
+                       self.max_iterations, self.tolerance], outputs=[lam, result, factor, work], device=lam.device)
 
     def solve(self, W: wp.array, delta_free: wp.array, delta_now: wp.array) -> None:
         """``lam`` of every direct-model world's force rows in use (actuators, contacts) from ``W``

@@ -13,6 +13,8 @@ import warp as wp
 
 from warpsoft.kernels.resolve import inverse_qp as kernels
 
+from ..launch import launch
+
 NMAX = kernels.NMAX
 STATUS = {int(kernels.OPTIMAL): "optimal", int(kernels.EMPTY_BOUNDS): "infeasible", int(kernels.INFEASIBLE):
           "infeasible", int(kernels.ITERATION_CAP): "failed"}
@@ -53,10 +55,10 @@ class DeviceInverse:
         """``lam`` of the inverse worlds' actuator rows (device; ``lam`` holds the previous
         actuation on entry)."""
         rows = self.rows
-        wp.launch(self._kernel, rows.num_worlds,
-                  inputs=[W, delta_free, delta_now, inputs, rows.world_row_start_d, rows.world_actuators_d,
-                          self.effector_start, self.effector_count, self.row_weight, self.epsilon,
-                          self.max_iterations], outputs=[lam, self.result], device=rows.device)
+        launch(self._kernel, rows.num_worlds,
+               inputs=[W, delta_free, delta_now, inputs, rows.world_row_start_d, rows.world_actuators_d,
+                       self.effector_start, self.effector_count, self.row_weight, self.epsilon,
+                       self.max_iterations], outputs=[lam, self.result], device=rows.device)
 
     @staticmethod
     def iterations(result: np.ndarray, world: int) -> int:

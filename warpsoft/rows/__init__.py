@@ -20,6 +20,7 @@ import warp as wp
 from warpsoft.kernels.rows import common as kernels
 from warpsoft.kernels.rows import mapping
 
+from ..launch import launch
 from ..mapping import locate
 from .attachment import AttachmentRows
 from .cable import CableRows
@@ -187,8 +188,8 @@ class Rows:
         if contact is not None:
             self.bodies = bodies
             contact.detect(self, q, lam, friction)
-            wp.launch(kernels.most_force_rows, 1, inputs=[self.world_force_rows], outputs=[self.force_columns],
-                      device=self.device)
+            launch(kernels.most_force_rows, 1, inputs=[self.world_force_rows], outputs=[self.force_columns],
+                   device=self.device)
 
     @property
     def effector_row_slice(self) -> slice:
@@ -213,8 +214,8 @@ class Rows:
         ``bodies``, in a model with rigid bodies): one launch per kind, all worlds."""
         self.bodies = bodies
         if self.num_points:
-            wp.launch(mapping.interpolate_points, self.num_points, inputs=[q, self.point_nodes, self.point_weights],
-                      outputs=[self.points], device=self.device)
+            launch(mapping.interpolate_points, self.num_points, inputs=[q, self.point_nodes, self.point_weights],
+                   outputs=[self.points], device=self.device)
         wp.copy(self.delta, self.delta_base)
         for block in self.kinds:
             block.evaluate(self, q)
@@ -222,9 +223,9 @@ class Rows:
     def actuator_columns(self, columns: wp.array) -> None:
         """``columns[j] = H_j^T`` for each world's ``j``-th force row (``(columns, n)`` vec3d)."""
         columns.zero_()
-        wp.launch(kernels.rows_to_columns, self.num_entries,
-                  inputs=[self.h_row, self.h_node, self.h_coef, self.column_of_row], outputs=[columns],
-                  device=self.device)
+        launch(kernels.rows_to_columns, self.num_entries,
+               inputs=[self.h_row, self.h_node, self.h_coef, self.column_of_row], outputs=[columns],
+               device=self.device)
 
     def compliance(self, x: wp.array, scale: float) -> None:
         """``W = scale H X`` (device) against the actuator columns ``X``; ``(rows, columns)``, row
@@ -236,46 +237,46 @@ class Rows:
         columns = self.num_columns
         if not self.device.is_cuda:
             columns = int(self.force_columns.numpy()[0])
-        wp.launch(kernels.rows_times_columns, (self.num_entries, columns),
-                  inputs=[self.h_row, self.h_node, self.h_coef, x, scale, self.force_columns], outputs=[self.W],
-                  device=self.device)
+        launch(kernels.rows_times_columns, (self.num_entries, columns),
+               inputs=[self.h_row, self.h_node, self.h_coef, x, scale, self.force_columns], outputs=[self.W],
+               device=self.device)
 
     def predict(self, dx: wp.array) -> wp.array:
         """``delta_free = delta + H dx`` (device, ``(rows,)``) for one displacement ``dx`` (``(1, n)``
         vec3d): the rows after the free motion, to first order (linearized where ``A`` is)."""
         wp.copy(self.delta_free, self.delta, count=self.num_rows)
-        wp.launch(kernels.rows_times_vector, self.num_entries, inputs=[self.h_row, self.h_node, self.h_coef, dx, 0],
-                  outputs=[self.delta_free], device=self.device)
+        launch(kernels.rows_times_vector, self.num_entries, inputs=[self.h_row, self.h_node, self.h_coef, dx, 0],
+               outputs=[self.delta_free], device=self.device)
         return self.delta_free
 
     def shift(self, dx: wp.array) -> None:
         """``delta += H dx`` (device) for a known motion ``dx`` (``(1, n)`` vec3d, m): the rows
         after it, to first order (a kinematic frame's move, taken as part of the step)."""
-        wp.launch(kernels.rows_times_vector, self.num_entries, inputs=[self.h_row, self.h_node, self.h_coef, dx, 0],
-                  outputs=[self.delta], device=self.device)
+        launch(kernels.rows_times_vector, self.num_entries, inputs=[self.h_row, self.h_node, self.h_coef, dx, 0],
+               outputs=[self.delta], device=self.device)
 
     def correct(self, dx_free: wp.array, x: wp.array, lam: wp.array, scale: float, dx: wp.array) -> None:
         """``dx = dx_free + scale X lambda`` (m): ``dx_free`` ``(n,)``, the columns ``x``
         ``(columns, n)``, ``lam`` per row (the force rows in use)."""
         m = self.model
-        wp.launch(kernels.correct_with_columns, m.num_nodes,
-                  inputs=[dx_free, x, lam, m.node_world, self.world_row_start_d, self.world_force_rows, scale],
-                  outputs=[dx], device=self.device)
+        launch(kernels.correct_with_columns, m.num_nodes,
+               inputs=[dx_free, x, lam, m.node_world, self.world_row_start_d, self.world_force_rows, scale],
+               outputs=[dx], device=self.device)
 
     def force_rows_forces(self, lam: wp.array, scale: float, force: wp.array) -> None:
         """``force = scale H_f^T lam`` (device, ``(n,)`` vec3d, N x scale) over each world's force
         rows in use: the right-hand side of the correction's one solve (the CPU path)."""
         force.zero_()
-        wp.launch(kernels.force_rows_transpose_times, self.num_entries,
-                  inputs=[self.h_row, self.h_node, self.h_coef, lam, scale, self.column_of_row, self.model.node_world,
-                          self.world_force_rows], outputs=[force], device=self.device)
+        launch(kernels.force_rows_transpose_times, self.num_entries,
+               inputs=[self.h_row, self.h_node, self.h_coef, lam, scale, self.column_of_row, self.model.node_world,
+                       self.world_force_rows], outputs=[force], device=self.device)
 
     def forces(self, lam: np.ndarray) -> np.ndarray:
         """Nodal forces ``H^T lambda`` (N), ``(n, 3)``, for multipliers of all rows."""
         f = wp.zeros(self.model.num_nodes, dtype=wp.vec3d, device=self.device)
-        wp.launch(kernels.rows_transpose_times, self.num_entries,
-                  inputs=[self.h_row, self.h_node, self.h_coef, wp.array(lam, dtype=wp.float64, device=self.device)],
-                  outputs=[f], device=self.device)
+        launch(kernels.rows_transpose_times, self.num_entries,
+               inputs=[self.h_row, self.h_node, self.h_coef, wp.array(lam, dtype=wp.float64, device=self.device)],
+               outputs=[f], device=self.device)
         return f.numpy()
 
     # ---- geometry for reports and USD -------------------------------------------------------

@@ -10,6 +10,7 @@ import warp as wp
 
 from warpsoft.kernels.rows import attachment as kernels
 
+from ..launch import launch
 from .kind import RowKind
 
 
@@ -48,8 +49,8 @@ class AttachmentRows(RowKind):
 
     def evaluate(self, table, q) -> None:
         bodies = table.bodies
-        wp.launch(kernels.attachment_rows, self.num_nodes,
-                  inputs=[q, self.node, self.body, self.local, self.first_row, bodies.body_p, bodies.body_r,
-                          self.entry_offset, self.rigid_offset],
-                  outputs=[table.delta, table.h_row, table.h_node, table.h_coef, table.j_row, table.j_body,
-                           table.j_lin, table.j_ang], device=self.model.device)
+        launch(kernels.attachment_rows, self.num_nodes,
+               inputs=[q, self.node, self.body, self.local, self.first_row, bodies.body_p, bodies.body_r,
+                       self.entry_offset, self.rigid_offset],
+               outputs=[table.delta, table.h_row, table.h_node, table.h_coef, table.j_row, table.j_body,
+                        table.j_lin, table.j_ang], device=self.model.device)

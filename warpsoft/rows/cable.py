@@ -11,6 +11,7 @@ import warp as wp
 from warpsoft.kernels.rows import cable as kernels
 
 from ..errors import SceneError
+from ..launch import launch
 from ..mapping import barycentric, locate
 from ..scene.obstacles import pose_of
 from .kind import RowKind
@@ -52,10 +53,10 @@ class CableRows(RowKind):
     def evaluate(self, table, q) -> None:
         # the entries of cable point j sit at entry_offset + 4 (j - point_offset): the cables'
         # points are contiguous in the table
-        wp.launch(kernels.cable_rows, len(self.placed),
-                  inputs=[table.points, table.point_nodes, table.point_weights, self.start, self.count, self.pull,
-                          self.rest_length, self.row, self.entry_offset - 4 * self.point_offset],
-                  outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)
+        launch(kernels.cable_rows, len(self.placed),
+               inputs=[table.points, table.point_nodes, table.point_weights, self.start, self.count, self.pull,
+                       self.rest_length, self.row, self.entry_offset - 4 * self.point_offset],
+               outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)
 
     def paths(self, points: np.ndarray, world: int) -> dict[str, np.ndarray]:
         """Each cable's polyline (m, pull point first) in ``world`` from the mapped points ``(p, 3)``."""

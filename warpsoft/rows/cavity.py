@@ -9,6 +9,7 @@ import warp as wp
 
 from warpsoft.kernels.rows import cavity as kernels
 
+from ..launch import launch
 from ..scene.cavity import enclosed_volume
 from .kind import RowKind
 
@@ -39,6 +40,6 @@ class CavityRows(RowKind):
 
     def evaluate(self, table, q) -> None:
         """Accumulate ``V`` into ``delta``, which holds ``-V0`` on these rows."""
-        wp.launch(kernels.cavity_rows, len(self.triangles),
-                  inputs=[q, self.tris, self.tri_row, self.tri_origin, self.entry_offset],
-                  outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)
+        launch(kernels.cavity_rows, len(self.triangles),
+               inputs=[q, self.tris, self.tri_row, self.tri_origin, self.entry_offset],
+               outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)

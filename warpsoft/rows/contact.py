@@ -26,6 +26,7 @@ import warp as wp
 from warpsoft.kernels.rows import contact as kernels
 from warpsoft.kernels.rows import self_contact as self_kernels
 
+from ..launch import launch
 from ..scene import obstacles as ob
 from .kind import RowKind
 
@@ -235,9 +236,9 @@ class ContactRows(RowKind):
     def _pose(self, bodies) -> None:
         """The rigid bodies' solids where their bodies are (before a detection or an evaluation)."""
         if len(self.owned):
-            wp.launch(kernels.pose_records, len(self.owned),
-                      inputs=[self.owned_d, self.owner, self.a_loc, self.b_loc, self.rot_loc, bodies, self.obstacles],
-                      device=self.model.device)
+            launch(kernels.pose_records, len(self.owned),
+                   inputs=[self.owned_d, self.owner, self.a_loc, self.b_loc, self.rot_loc, bodies, self.obstacles],
+                   device=self.model.device)
 
     def _meshes(self, device, surfaces: dict) -> None:
         """The records' triangles and BVHs (``wp.Mesh``, single precision, kept alive here):
@@ -329,30 +330,30 @@ class ContactRows(RowKind):
         d, bodies = self.model.device, self.bodies(table.bodies)
         self._pose(bodies)
         if self.surface_bvh:  # the self-contact surfaces where the nodes are
-            wp.launch(self_kernels.surface_points, len(self.surface_node), inputs=[q, self.surface_node],
-                      outputs=[self.surface_points], device=d)
+            launch(self_kernels.surface_points, len(self.surface_node), inputs=[q, self.surface_node],
+                   outputs=[self.surface_points], device=d)
             for bvh in self.surface_bvh:
                 bvh.refit()
             self.surface_normal.zero_()
-            wp.launch(self_kernels.surface_normals, len(self.tri_nodes), inputs=[q, self.tri_nodes],
-                      outputs=[self.surface_normal], device=d)
-        wp.launch(kernels.mark_candidates, self.num_candidates,
-                  inputs=[q, self.points, self.obstacles, self.owner, bodies, self.model.dt, self.velocities(table),
-                          self.surface_normal],
-                  outputs=[self.near, self.cand_tri], device=d)
-        wp.launch(kernels.assign_slots, self.model.num_worlds,
-                  inputs=[q, self.world_cand_start, self.near, self.points, bodies, self.owner, self.mu,
-                          self.step_rot, self.step_shift, self.capacity, self.slot_start, self.contact_row,
-                          self.rows_per_slot, table.world_held_d, self.obstacles, self.cand_tri],
-                  outputs=[self.slot_candidate, self.slot_tri, self.slot_weights, self.anchor, self.found,
-                           table.world_force_rows, lam, friction, self.cand_lam], device=d)
+            launch(self_kernels.surface_normals, len(self.tri_nodes), inputs=[q, self.tri_nodes],
+                   outputs=[self.surface_normal], device=d)
+        launch(kernels.mark_candidates, self.num_candidates,
+               inputs=[q, self.points, self.obstacles, self.owner, bodies, self.model.dt, self.velocities(table),
+                       self.surface_normal],
+               outputs=[self.near, self.cand_tri], device=d)
+        launch(kernels.assign_slots, self.model.num_worlds,
+               inputs=[q, self.world_cand_start, self.near, self.points, bodies, self.owner, self.mu,
+                       self.step_rot, self.step_shift, self.capacity, self.slot_start, self.contact_row,
+                       self.rows_per_slot, table.world_held_d, self.obstacles, self.cand_tri],
+               outputs=[self.slot_candidate, self.slot_tri, self.slot_weights, self.anchor, self.found,
+                        table.world_force_rows, lam, friction, self.cand_lam], device=d)
 
     def evaluate(self, table, q) -> None:
         bodies = self.bodies(table.bodies)
         self._pose(bodies)
-        wp.launch(kernels.contact_rows, self.num_slots,
-                  inputs=[q, self.slot_candidate, self.slot_row, self.slot_rows, self.slot_entry, self.slot_tri,
-                          self.slot_weights, self.anchor, self.points, self.obstacles, self.owner, bodies,
-                          self.entry_offset, self.entries_per_row, self.rigid_offset if self.num_rigid_entries else -1],
-                  outputs=[table.delta, table.h_row, table.h_node, table.h_coef, table.j_row, table.j_body,
-                           table.j_lin, table.j_ang, self.slot_point, self.row_dir], device=self.model.device)
+        launch(kernels.contact_rows, self.num_slots,
+               inputs=[q, self.slot_candidate, self.slot_row, self.slot_rows, self.slot_entry, self.slot_tri,
+                       self.slot_weights, self.anchor, self.points, self.obstacles, self.owner, bodies,
+                       self.entry_offset, self.entries_per_row, self.rigid_offset if self.num_rigid_entries else -1],
+               outputs=[table.delta, table.h_row, table.h_node, table.h_coef, table.j_row, table.j_body,
+                        table.j_lin, table.j_ang, self.slot_point, self.row_dir], device=self.model.device)

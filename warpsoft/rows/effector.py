@@ -9,6 +9,7 @@ import warp as wp
 
 from warpsoft.kernels.rows import effector as kernels
 
+from ..launch import launch
 from .kind import RowKind
 
 
@@ -56,7 +57,7 @@ class EffectorRows(RowKind):
         return self._targets
 
     def evaluate(self, table, q) -> None:
-        wp.launch(kernels.effector_rows, len(self.row),
-                  inputs=[table.points, table.point_nodes, table.point_weights, self.point, self.axis, self.target,
-                          self.row, self.entry_offset],
-                  outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)
+        launch(kernels.effector_rows, len(self.row),
+               inputs=[table.points, table.point_nodes, table.point_weights, self.point, self.axis, self.target,
+                       self.row, self.entry_offset],
+               outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)
