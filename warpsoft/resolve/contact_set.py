@@ -66,7 +66,13 @@ class ContactSet:
         self.is_normal = self.normal_of == np.arange(n)  # (every row that is not a contact's tangent)
         self.world_of = np.searchsorted(rows.world_row_start, np.arange(n), side="right") - 1
         self.predicted = wp.zeros(n, dtype=wp.float64, device=cpu)  # every row's delta after a correction
-        self.packed_start = wp.zeros(rows.num_worlds + 1, dtype=wp.int32, device="cpu")  # (the sweeps' device)
+        # the set's rows packed world by world for the sweeps, on Warp's CPU device (filled in place:
+        # the same arrays at every launch)
+        f64 = lambda *shape: wp.zeros(shape, dtype=wp.float64, device="cpu")  # noqa: E731
+        self.packed = {"W": f64(max(n, 1), max(rows.W.shape[1], 1)), "delta_free": f64(max(n, 1)),
+                       "start": f64(max(n, 1)), "inputs": f64(gs_kernels.NUM_INPUTS, max(n, 1)),
+                       "friction": f64(max(n, 1)), "lam": f64(max(n, 1))}
+        self.packed_start = wp.zeros(rows.num_worlds + 1, dtype=wp.int32, device="cpu")
         self.packed_rows = wp.zeros(rows.num_worlds, dtype=wp.int32, device="cpu")
         self.rounds, self.size = 0, 0
 
@@ -174,20 +180,20 @@ class ContactSet:
         packed_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
         local = idx - rows.world_row_start[world]  # each member's column in W
         pos = np.arange(len(idx)) - packed_start[world]  # its column among its world's members
-        width = max(int(counts.max(initial=0)), 1)
-        packed = np.zeros((max(len(idx), 1), width))
+        p = {name: a.numpy() for name, a in self.packed.items()}  # views
         same = world[:, None] == world[None, :]
         ii, jj = np.nonzero(same)
-        packed[ii, pos[jj]] = W[idx[ii], local[jj]]
-        f64 = lambda a: wp.array(np.ascontiguousarray(a, dtype=np.float64), dtype=wp.float64, device="cpu")  # noqa: E731
-        self.packed_start.assign(packed_start)
-        self.packed_rows.assign(counts)
-        lam_packed = f64(lam[idx] if len(idx) else np.zeros(1))
-        c = gs.host_arrays()
-        gs._launch(f64(packed), f64(delta_free[idx]), f64(start[idx]), f64(gs.host[:, idx]), self.packed_start,
-                   self.packed_rows, c["direct"], f64(friction[idx]), lam_packed, c["result"], c["counts"],
-                   c["factor"], c["work"])
-        lam[idx] = lam_packed.numpy()[: len(idx)]
+        p["W"][ii, pos[jj]] = W[idx[ii], local[jj]]
+        k = len(idx)
+        p["delta_free"][:k], p["start"][:k], p["friction"][:k], p["lam"][:k] = (delta_free[idx], start[idx],
+                                                                               friction[idx], lam[idx])
+        p["inputs"][:, :k] = gs.host[:, idx]
+        self.packed_start.numpy()[:] = packed_start
+        self.packed_rows.numpy()[:] = counts
+        c, a = gs.host_arrays(), self.packed
+        gs._launch(a["W"], a["delta_free"], a["start"], a["inputs"], self.packed_start, self.packed_rows, c["direct"],
+                   a["friction"], a["lam"], c["result"], c["counts"], c["factor"], c["work"])
+        lam[idx] = p["lam"][:k]
         return c["result"].numpy()[:, gs_kernels.ITERATIONS].copy()
 
     def _predict(self) -> None:
