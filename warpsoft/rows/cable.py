@@ -37,18 +37,20 @@ class CableRows(RowKind):
         self.pull_host = np.array([p.item.pull_point for p in placed])  # where each is now (m)
         self.pull = wp.array(self.pull_host, dtype=wp.vec3d, device=d)
         self.moving = [k for k, p in enumerate(placed) if p.item.pull_motion is not None]
+        self._posed_at = None  # the time the pull points were last placed at (s)
         self.rest_length = wp.array(np.array([p.item.rest_length for p in placed]), dtype=wp.float64, device=d)
         self.row = wp.array(np.array([p.first_row for p in placed], dtype=np.int32), dtype=wp.int32, device=d)
 
     def set_time(self, t: float) -> None:
-        """The pull points that ride a frame, where it is at ``t`` (s): one upload, only then."""
-        if not self.moving:
+        """The pull points that ride a frame, where it is at ``t`` (s): one upload, once per time."""
+        if not self.moving or self._posed_at == t:
             return
         for k in self.moving:
             cable = self.placed[k].item
             rotation, translation = pose_of(cable.pull_motion, t, f"cable '{cable.name}': pull_motion")
             self.pull_host[k] = rotation @ cable.pull_point + translation
         self.pull.assign(self.pull_host)
+        self._posed_at = t
 
     def evaluate(self, table, q) -> None:
         # the entries of cable point j sit at entry_offset + 4 (j - point_offset): the cables'
