@@ -84,7 +84,9 @@ def stiffness_product(
 
 @wp.func
 def stiffness_block(ga: wp.vec3d, gb: wp.vec3d, mu: wp.float64, lam: wp.float64) -> wp.mat33d:
-    """Unrotated 3x3 block ``K0_ab / V`` coupling nodes ``a`` and ``b`` (Pa m^-2)."""
+    """Unrotated 3x3 block ``K0_ab / V`` coupling nodes ``a`` and ``b`` (Pa m^-2). Rotated,
+    ``R K0(ga, gb) R^T = K0(R ga, R gb)`` (``R I R^T = I``, ``R (u v^T) R^T = (R u)(R v)^T``):
+    the kernels below rotate the four gradients once, not each block."""
     return mu * wp.dot(ga, gb) * wp.identity(n=3, dtype=wp.float64) + mu * wp.outer(gb, ga) + lam * wp.outer(
         ga, gb
     )
@@ -106,9 +108,8 @@ def stiffness_diagonal(
     Di = dm_inv[e]
     R = rot[e]
     for a in range(4):
-        g = shape_gradient(Di, a)
-        Kaa = volume[e] * (R * stiffness_block(g, g, mu[e], lam[e]) * wp.transpose(R))
-        wp.atomic_add(diag, t[a], Kaa)
+        g = R * shape_gradient(Di, a)
+        wp.atomic_add(diag, t[a], volume[e] * stiffness_block(g, g, mu[e], lam[e]))
 
 
 @wp.kernel
@@ -121,15 +122,19 @@ def stiffness_blocks(
     blocks: wp.array(dtype=wp.mat33d),
 ):
     """All sixteen rotated 3x3 blocks of each element's stiffness, for sparse assembly
-    (direct solver only): ``blocks[16 e + 4 a + b] = V R K0_ab R^T`` (N/m)."""
+    (direct solver only): ``blocks[16 e + 4 a + b] = V R K0_ab R^T = V K0(R g_a, R g_b)`` (N/m);
+    ``K_ba = K_ab^T``."""
     e = wp.tid()
     Di = dm_inv[e]
     R = rot[e]
+    V = volume[e]
     for a in range(4):
-        ga = shape_gradient(Di, a)
-        for b in range(4):
-            gb = shape_gradient(Di, b)
-            blocks[16 * e + 4 * a + b] = volume[e] * (R * stiffness_block(ga, gb, mu[e], lam[e]) * wp.transpose(R))
+        ga = R * shape_gradient(Di, a)
+        for b in range(a, 4):
+            Kab = V * stiffness_block(ga, R * shape_gradient(Di, b), mu[e], lam[e])
+            blocks[16 * e + 4 * a + b] = Kab
+            if b != a:
+                blocks[16 * e + 4 * b + a] = wp.transpose(Kab)
 
 
 @wp.kernel
