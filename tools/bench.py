@@ -75,7 +75,7 @@ class Counter:
 
     def __enter__(self):
         wp = self.wp
-        self._saved = (wp.launch, wp.launch_tiled, wp.array.numpy, wp.array.assign, wp.copy)
+        self._saved = (wp.launch, wp.launch_tiled, wp.array.numpy, wp.array.assign, wp.copy, wp.Launch.launch)
 
         def count(kind, f):
             def wrapped(*a, **k):
@@ -83,7 +83,15 @@ class Counter:
                 return f(*a, **k)
             return wrapped
 
-        wp.launch, wp.launch_tiled = count("launches", wp.launch), count("launches", wp.launch_tiled)
+        launch = wp.launch
+
+        def counted_launch(*a, **k):  # a recorded command counts when it runs (Launch.launch)
+            if not k.get("record_cmd"):
+                self.launches += 1
+            return launch(*a, **k)
+
+        wp.launch, wp.launch_tiled = counted_launch, count("launches", wp.launch_tiled)
+        wp.Launch.launch = count("launches", wp.Launch.launch)  # replays (warpsoft.launch on the CPU)
         wp.array.numpy, wp.array.assign = count("transfers", wp.array.numpy), count("transfers", wp.array.assign)
         copy = wp.copy
 
@@ -97,7 +105,7 @@ class Counter:
 
     def __exit__(self, *exc):
         (self.wp.launch, self.wp.launch_tiled, self.wp.array.numpy, self.wp.array.assign,
-         self.wp.copy) = self._saved
+         self.wp.copy, self.wp.Launch.launch) = self._saved
 
 
 def kernel_table(results) -> list[dict]:
