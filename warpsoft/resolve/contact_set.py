@@ -86,32 +86,22 @@ class ContactSet:
         W, delta_free, lam = rows.W.numpy(), rows.delta_free.numpy(), gs.lam.numpy()  # views: the CPU device
         start, friction = sim.newton.delta_start.numpy(), gs.friction.numpy()
         force_rows = rows.world_force_rows.numpy()
-        in_use, contacts, member = self._begin(force_rows, lam)
         rigid_share = W.copy()  # what the rigid bodies put in W (the compliance stage left only that)
-        scale = float(np.abs(delta_free[in_use]).max(initial=0.0))
-        sweeps = np.zeros(rows.num_worlds)
-        self.rounds = 0
-        while True:
-            self.rounds += 1
-            if self.rounds >= MAX_ROUNDS:
-                member = in_use.copy()
-            lam[contacts & ~member] = 0.0
+
+        def one_round(member: np.ndarray, out: np.ndarray, in_use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             sim.solver.compliance(rows, sim.constraint_scale, only=member | ~(in_use | self.contact))
-            W += rigid_share
-            sweeps += self._sweep(member, W, delta_free, start, friction, lam)
+            W[:] += rigid_share
+            sweeps = self._sweep(member, W, delta_free, start, friction, lam)
             correct()
             self._predict()
             predicted = self.predicted.numpy()
-            out = contacts & ~member
             predicted[out] += (rigid_share[out] * self._by_column(lam, force_rows)[self.world_of[out]]).sum(axis=1)
-            through = out & self.is_normal & (predicted < -PENETRATION * scale)
-            if self.rounds >= MAX_ROUNDS or not through.any():
-                break
-            member |= through[self.normal_of] & in_use
+            return sweeps, predicted
+
+        sweeps, out, predicted = self._rounds(force_rows, delta_free, lam, one_round)
         delta_free[out] = predicted[out]  # no W row: the prediction is delta_free alone
         W[out] = 0.0
         gs.result.numpy()[:, gs_kernels.ITERATIONS] = sweeps
-        self.size = int(member.sum())
 
     def resolve_columns(self, host: dict[str, np.ndarray]) -> None:
         """The same rounds where ``W`` was formed between every row in use (from solved columns:
@@ -121,8 +111,26 @@ class ContactSet:
         place). Only the sweeps shrink; a left-out contact is checked by its row of ``W``:
         ``delta_free + W lambda``, exact (no correction is made in between)."""
         gs = self.sim.gauss_seidel
-        W, delta_free, lam = host["W"], host["delta_free"], host["lam"]
-        force_rows = host["force_rows"]
+        W, delta_free, lam, force_rows = host["W"], host["delta_free"], host["lam"], host["force_rows"]
+
+        def one_round(member: np.ndarray, out: np.ndarray, in_use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            sweeps = self._sweep(member, W, delta_free, host["delta"], host["friction"], lam)
+            predicted = delta_free.copy()
+            predicted[out] += (W[out] * self._by_column(lam, force_rows)[self.world_of[out]]).sum(axis=1)
+            return sweeps, predicted
+
+        sweeps, _, _ = self._rounds(force_rows, delta_free, lam, one_round)
+        result = gs.host_arrays()["result"]
+        result.numpy()[:, gs_kernels.ITERATIONS] = sweeps
+        if result.ptr != gs.result.ptr:
+            gs.result.assign(result)
+
+    def _rounds(self, force_rows: np.ndarray, delta_free: np.ndarray, lam: np.ndarray, one_round: Callable) -> tuple:
+        """The rounds, from the first set to the one that lets no contact through (or the last,
+        with every contact): ``one_round(member, out, in_use)`` sweeps the set ``member`` (and
+        what goes with it) and returns the worlds' sweeps and every row's predicted delta, read
+        at the contacts left out ``out``. Returns the sweeps summed, the last ``out`` and the
+        last prediction."""
         in_use, contacts, member = self._begin(force_rows, lam)
         scale = float(np.abs(delta_free[in_use]).max(initial=0.0))
         sweeps = np.zeros(self.rows.num_worlds)
@@ -132,19 +140,15 @@ class ContactSet:
             if self.rounds >= MAX_ROUNDS:
                 member = in_use.copy()
             lam[contacts & ~member] = 0.0
-            sweeps += self._sweep(member, W, delta_free, host["delta"], host["friction"], lam)
             out = contacts & ~member
-            predicted = delta_free[out] + (W[out] * self._by_column(lam, force_rows)[self.world_of[out]]).sum(axis=1)
-            through = np.zeros_like(out)
-            through[out] = self.is_normal[out] & (predicted < -PENETRATION * scale)
+            done, predicted = one_round(member, out, in_use)
+            sweeps += done
+            through = out & self.is_normal & (predicted < -PENETRATION * scale)
             if self.rounds >= MAX_ROUNDS or not through.any():
                 break
             member |= through[self.normal_of] & in_use
-        result = gs.host_arrays()["result"]
-        result.numpy()[:, gs_kernels.ITERATIONS] = sweeps
-        if result.ptr != gs.result.ptr:
-            gs.result.assign(result)
         self.size = int(member.sum())
+        return sweeps, out, predicted
 
     def _begin(self, force_rows: np.ndarray, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The force rows in use (from each world's count ``force_rows``), the contact rows among
