@@ -24,7 +24,7 @@ class Readback:
     def __init__(self, arrays: dict[str, wp.array], device):
         self.device = wp.get_device(device)
         # on the CPU device the arrays are host memory already: each is read in place (the
-        # gather's twenty copies cost 0.25 ms of the Grasper's CPU step)
+        # gather's copies and the read: 0.18 -> 0.06 ms for the Grasper's fifteen arrays)
         self._in_place = dict(arrays) if self.device.is_cpu else None
         self._sources, layout, offset = [], {}, 0
         for name, a in arrays.items():

@@ -1,5 +1,5 @@
-"""The contacts that bear, found lazily: the sweeps, and where ``W`` comes from the factor ``W``
-itself, only between them (wherever the Gauss-Seidel runs on the host's CPU).
+"""The contacts that bear, found lazily (wherever the Gauss-Seidel runs on the host's CPU): the
+sweeps run on them alone and, where ``W`` comes from the factor, ``W`` is formed between them alone.
 
 A detection keeps every point within contact distance, and few of them bear: on the Grasper's
 lift, 6 of 35 contacts (a flat face on a rigid one bears on the patch's corners). Each kept
