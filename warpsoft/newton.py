@@ -141,17 +141,21 @@ class Newton:
         if actuated:
             wp.copy(self.lam_base, self.sim.gauss_seidel.lam)
 
-    def advance(self, e: wp.array, actuated: bool, retry: bool = False) -> None:
+    def advance(self, e: wp.array, actuated: bool, retry: bool = False, scaled_forces: wp.array | None = None) -> None:
         """``dx = dx_k + alpha e``, the positions and velocities it gives (``next``), and the
         multipliers along the same fraction (the resolve's kept in ``lam_full``); ``retry``: the
-        same correction along new fractions (the line search)."""
+        same correction along new fractions (the line search). ``scaled_forces``: ``s H_f^T lambda``
+        (``(n,)`` vec3d) when the correction already made it (its one solve's right-hand side)."""
         sim, m = self.sim, self.sim.model
         if not retry:  # e . A e = (r + s H^T lambda) . e, at this iteration's linearization
             self.slope0.zero_()
-            if actuated:
+            forces, s = self.row_forces, sim.constraint_scale
+            if actuated and scaled_forces is not None:
+                forces, s = scaled_forces, 1.0
+            elif actuated:
                 sim.rows.force_rows_forces(sim.gauss_seidel.lam, 1.0, self.row_forces)
-            launch_nodes(kernels.slope, 1, m.num_nodes, [sim.rhs, m.mask, self.row_forces, sim.constraint_scale,
-                                                         e, m.node_world, self.slope0], m.device)
+            launch_nodes(kernels.slope, 1, m.num_nodes, [sim.rhs, m.mask, forces, s, e, m.node_world, self.slope0],
+                         m.device)
             if sim.driven is not None and self.accepted == 0:  # the step's first correction: with the frames' move
                 launch(kernels.prescribed_slope, m.num_nodes, inputs=[e, self.dx_base, sim.driven.a_dx,
                                                                       m.node_world, self.slope0], device=m.device)

@@ -93,7 +93,8 @@ def iterate(sim: Simulator, stats: StepStats, actuated: bool, host_resolve: bool
     solve.append(("free_solve", lambda: free_solve(sim, actuated, first, captured)))
     if actuated:
         solve += [("compliance", lambda: compliance(sim)), ("resolve", lambda: resolve_on_device(sim))]
-    finish = [("correct", lambda: sim.newton.advance(correction(sim, actuated), actuated)),
+    finish = [("correct", lambda: sim.newton.advance(correction(sim, actuated), actuated,
+                                                     scaled_forces=made_forces(sim, actuated))),
               ("linearize", lambda: relinearize(sim, actuated))]
     if host_resolve:  # two graphs around the host's QP or Gauss-Seidel
         before = run(sim, stats, "device_before_qp" if first else "newton_before_qp", solve, captured, sim.before_qp)
@@ -274,6 +275,12 @@ def correction(sim: Simulator, actuated: bool, make: bool = True) -> wp.array:
         if sim.rigid is not None:
             sim.rigid.correct(sim.gauss_seidel.lam, sim.constraint_scale)
     return sim.dx
+
+
+def made_forces(sim: Simulator, actuated: bool) -> wp.array | None:
+    """``s H_f^T lambda`` where this iteration's correction made it (its one solve, from the
+    factor), for Newton's slope to reuse; else None."""
+    return sim.row_force[0] if actuated and from_factor(sim) else None
 
 
 def correct_by_one_solve(sim: Simulator) -> None:
