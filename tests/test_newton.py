@@ -40,21 +40,65 @@ def test_a_small_load_takes_one_iteration_and_leaves_almost_no_residual(scene_mo
     assert stats.newton_iterations == 1 and stats.newton_residual < 1e-3 and stats.line_searches == 0
 
 
-@pytest.mark.parametrize("static", [True, False])
-def test_a_state_changed_between_steps_is_linearized_again(scene_module, static):
+@pytest.mark.parametrize("static, factor_reuse", [(True, 0.0), (False, 0.0), (True, 0.5), (False, 0.5)])
+def test_a_state_changed_between_steps_is_linearized_again(scene_module, static, factor_reuse):
     """The step reuses the linearization made at the end of the last one, unless the state was
     changed from outside: then it makes it again, and the step is the one a fresh simulator
-    takes from that state."""
+    takes from that state; with ``factor_reuse``, it factorizes that linearization too (the last
+    factorization knows nothing of the jump)."""
     scene = cantilever(scene_module, static=static)
-    sim, _ = run(scene, 2)
+    sim, history = run(scene, 6, factor_reuse=factor_reuse)
+    if factor_reuse:  # steps kept the factorization, and the next one may
+        assert any(s.factorizations < s.newton_iterations for s in history)
+        assert history[-1].newton_iterations == 1 and history[-1].newton_residual <= factor_reuse
     moved = sim.model.rest_np + np.array([0.0, 0.0, 1e-3])  # the beam lifted (its clamp too: fixed DOFs move along)
     sim.state.q.assign(moved)
     sim.state.v.zero_()
-    sim.step()
+    stats = sim.step()
+    assert stats.factorizations == stats.newton_iterations
     fresh = ws.Simulator(cantilever(scene_module, static=static), solver="direct")
     fresh.state.q.assign(moved)
     fresh.step()
     assert np.abs(sim.state.positions() - fresh.state.positions()).max() < 1e-12
+
+
+def test_a_kept_factorization_reaches_the_same_equilibrium(scene_module):
+    """Quasi-static steps of one linearization each converge to the large-deflection equilibrium
+    (see the first test); kept factorizations (``factor_reuse``) change the tangent of those
+    steps, not the forces they balance: the same equilibrium, to 1e-8 m, with fewer
+    factorizations than steps."""
+    reference, every = run(cantilever(scene_module), 40, newton_iterations=1)
+    reuse, kept = run(cantilever(scene_module), 40, newton_iterations=1, factor_reuse=0.5)
+    ref = reference.probe_positions()["tip"]
+    assert np.abs(reuse.probe_positions()["tip"] - ref).max() < 1e-8
+    assert sum(s.factorizations for s in every) == 40
+    assert sum(s.factorizations for s in kept) < 10
+
+
+def test_a_kept_factorization_keeps_a_swinging_beam_on_its_trajectory(scene_module):
+    """A soft cantilever swinging under gravity (6 cm of motion in 60 steps), against the same
+    swing converged to a Newton tolerance of 1e-4: with factorizations kept while the last
+    step's residual stays under 0.01, the trajectory is no further from it than with a
+    factorization at every step, and every Newton iteration after a step's first factorizes."""
+    def swing(**options):
+        scene = scene_module("scenes/validation/cantilever.py").build(gravity=9.81, static=False,
+                                                                      young_modulus=2e5, mesh_size=0.005)
+        sim = ws.Simulator(scene, solver="direct", **options)
+        history, path = [], []
+        for _ in range(60):
+            history.append(sim.step())
+            path.append(sim.probe_positions()["tip"])
+        return history, np.array(path)
+
+    _, converged = swing(newton_tolerance=1e-4, newton_iterations=20)
+    every, fresh = swing()
+    kept, reused = swing(factor_reuse=0.01)
+    assert np.ptp(converged[:, 2]) > 0.03
+    error_fresh, error_kept = np.abs(fresh - converged).max(), np.abs(reused - converged).max()
+    assert error_kept <= 1.25 * error_fresh
+    assert sum(s.factorizations for s in every) == sum(s.newton_iterations for s in every)
+    assert sum(s.factorizations for s in kept) < sum(s.newton_iterations for s in kept)
+    assert all(s.factorizations >= s.newton_iterations - 1 for s in kept)
 
 
 def test_newton_options_are_checked(scene_module):
@@ -65,6 +109,10 @@ def test_newton_options_are_checked(scene_module):
         ws.Simulator(scene, newton_tolerance=0.0)
     with pytest.raises(ws.SceneError, match="line_search must be >= 0"):
         ws.Simulator(scene, line_search=-1)
+    with pytest.raises(ws.SceneError, match=r"factor_reuse must lie in \[0, 1\), got 1.5"):
+        ws.Simulator(scene, factor_reuse=1.5)
+    with pytest.raises(ws.SceneError, match="factor_reuse keeps the direct solver's factorization; solver 'pcg'"):
+        ws.Simulator(scene, solver="pcg", factor_reuse=0.01)
 
 
 def test_a_preconditioner_due_for_a_refresh_is_refreshed_before_the_solve(scene_module):

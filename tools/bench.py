@@ -167,6 +167,7 @@ def measure(name: str, path: str, params: dict, device: str, solver: str, steps:
         "launch_floor_ms": 1e-3 * LAUNCH_FLOOR_US * counter.launches,
         "peak_device_bytes_per_dof": None if peak is None else peak / m.num_dofs,
         "refreshes": getattr(getattr(sim.solver, "precond", None), "refreshes", None),
+        "factorizations_per_step": float(np.mean([s.factorizations for s in stats])),
         "steps": steps, "warmup": warmup, "kernels": kernels,
     }
 
@@ -255,6 +256,8 @@ def main(argv=None) -> int:
                     help="CUDA: time each kernel and copy of the uncaptured step (kernels.md)")
     ap.add_argument("--precision", choices=["float32", "float64"], default="float32",
                     help="pcg's dense warped inverse")
+    ap.add_argument("--factor-reuse", type=float, default=0.0,
+                    help="direct: the Simulator's factor_reuse (0: a factorization at every linearization)")
     args = ap.parse_args(argv)
     kind = "cuda" if args.device.startswith("cuda") else "cpu"
     if args.compare:
@@ -262,6 +265,9 @@ def main(argv=None) -> int:
     else:
         runs = [("v2", args.solver, {"qp": args.qp} | ({"precision": args.precision} if args.solver in ("pcg", "auto")
                                                          else {}))]
+    if args.factor_reuse:
+        runs = [(config, solver, options | {"factor_reuse": args.factor_reuse}) for config, solver, options in runs
+                if config == "v2"]
     chosen = [s for s in SCENES if args.scenes is None or s[0] in args.scenes]
     rows = []
     for name, path, params, *skip in chosen:
@@ -275,7 +281,8 @@ def main(argv=None) -> int:
             r = rows[-1]
             print(f"{name:16s} {config} {r['solver']:6s} {r['dofs']:6d} DOFs  median {r['step_ms']['median']:8.2f} ms"
                   f"  p90 {r['step_ms']['p90']:8.2f} ms  its {r['cg_iterations_median']:.0f}  launches "
-                  f"{r['launches_per_step']}  ({time.perf_counter() - t0:.0f} s)", flush=True)
+                  f"{r['launches_per_step']}  factorizations {r['factorizations_per_step']:.2f}"
+                  f"  ({time.perf_counter() - t0:.0f} s)", flush=True)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     meta = {"date": date.today().isoformat(), "device": args.device, "machine": platform.processor() or

@@ -71,9 +71,10 @@ class StepStats:
     """What one step did: solver statistics and the wall time (s) of each stage that ran.
 
     Stages (summed over the step's Newton iterations): ``linearize`` (rotations, forces,
-    preconditioner or factorization, rows and their columns ``H^T``, the nonlinear residual, the
-    health check), ``free_solve`` (the motion and, with actuators, their compliance columns,
-    solved together in one batched solve), ``compliance`` (``delta_free`` and ``W`` from the
+    the preconditioner's update, rows and their columns ``H^T``, the nonlinear residual,
+    the health check), ``free_solve`` (the motion and, with actuators, their compliance columns,
+    solved together in one batched solve; with ``direct``, the factorization of the last
+    linearization, made when this first solve needs it), ``compliance`` (``delta_free`` and ``W`` from the
     solved columns), ``resolve`` (the multipliers), ``correct`` (the correction and the update);
     on CUDA the captured graphs instead (``device_step``, ``newton_step``, ``line_search``, and
     around a host QP ``device_before_qp``, ``newton_before_qp``, ``device_after_qp``).
@@ -81,7 +82,8 @@ class StepStats:
     solve, the most any world needed); ``compliance_iterations`` is the same count when
     actuators rode along, else 0. ``newton_iterations`` is the most linearizations a world
     needed, ``newton_residual`` the largest final relative residual of a world, and
-    ``line_searches`` the shortened steps tried. ``worlds``
+    ``line_searches`` the shortened steps tried; ``factorizations`` counts the direct solver's
+    numeric factorizations in the step (fewer than its linearizations with ``factor_reuse``). ``worlds``
     holds each world's rows; with one world, its fields read as attributes of the step too
     (``stats.actuator_delta`` and so on).
     """
@@ -98,6 +100,7 @@ class StepStats:
     newton_iterations: int = 0
     newton_residual: float = 0.0
     line_searches: int = 0
+    factorizations: int = 0
     worlds: list[WorldStats] = field(default_factory=list)
 
     resolve_iterations = _of_the_world("resolve_iterations")

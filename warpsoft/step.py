@@ -51,6 +51,7 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     host_resolve = host_qp or sim.host_gauss_seidel  # the step splits into two graphs around it
     host_inputs(sim, stats.time, controls)  # user schedules, evaluated once; uploads only when they change
     newton = sim.newton
+    factorizations = reuse_factor(sim)
     newton.begin_step()
     first = True
     while True:
@@ -69,6 +70,8 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     if not first:
         wp.copy(sim.dx_free[0], newton.warm)
     record_newton(sim, stats)
+    if factorizations is not None:
+        stats.factorizations = sim.solver.factorizations - factorizations
     watch.health(sim, stats, host)
     watch.inverted_elements(sim, stats, host)
     if rows is not None:
@@ -89,6 +92,8 @@ def iterate(sim: Simulator, stats: StepStats, actuated: bool, host_resolve: bool
             first: bool) -> dict[str, np.ndarray]:
     """One Newton iteration (the first also starts the step), read back in one transfer."""
     captured = capturable(sim)
+    if not first and sim.factor_reuse:  # the step iterates: on the tangent of where it is
+        sim.solver.keep = False
     solve = [("linearize", lambda: begin(sim, actuated))] if first else []
     solve.append(("free_solve", lambda: free_solve(sim, actuated, first, captured)))
     if actuated:
@@ -148,6 +153,21 @@ def replay(sim: Simulator, stats: StepStats, name: str, work) -> None:
         wp.capture_launch(sim.graphs[key])
 
 
+def reuse_factor(sim: Simulator) -> int | None:
+    """Whether this step may keep the direct solver's factorization of an earlier linearization
+    (``factor_reuse``): when the step before converged in its first iteration with a nonlinear
+    residual at most ``factor_reuse``. That residual measures the tangent's error along the step
+    (see :mod:`warpsoft.newton`), a stale factorization's with the rest, so the factorization is
+    made again as soon as it drifts. Returns the solver's factorization count (None: a solver
+    without one)."""
+    solver, newton = sim.solver, sim.newton
+    if not hasattr(solver, "factorizations"):
+        return None
+    solver.keep = bool(sim.factor_reuse and sim.step_index > 0 and newton.accepted == 1
+                       and not newton.trials and newton.error.max() <= sim.factor_reuse)
+    return solver.factorizations
+
+
 # ---- stages ------------------------------------------------------------------------------
 def linearize(sim: Simulator, q: wp.array) -> None:
     """Element rotations and internal forces at ``q``; the solver's per-linearization update."""
@@ -165,6 +185,8 @@ def begin(sim: Simulator, actuated: bool) -> None:
     q = sim.state.q
 
     def again() -> None:  # the state changed since the last step linearized it
+        if sim.factor_reuse:  # (by a jump the last factorization knows nothing of)
+            sim.solver.keep = False
         linearize(sim, q)
         if actuated:
             sim.rows.evaluate(q, sim.state)

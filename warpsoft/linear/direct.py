@@ -17,9 +17,20 @@ from .pcg import SolveResult
 class SparseDirect:
     """Factorize at each linearization (the pattern analysed once), solve all columns at once.
 
+    The factorization is made when a solve first needs it after :meth:`prepare`. While
+    :attr:`keep` is set (the step allows it, see ``factor_reuse`` in :mod:`warpsoft.step`), a solve
+    uses the factorization it has, of an earlier linearization, and the one due is not made:
+    the factor then stands for the tangent of a modified Newton iteration.
+
     Args:
-        operator: the system; its rotations and scales are read at each :meth:`prepare`.
+        operator: the system; its rotations and scales are read when the factorization is made.
         factorization: "cholmod" (default) or "superlu" (v1's, for comparison).
+
+    Attributes:
+        keep: whether the next solves may use the current factorization though a newer
+            linearization is due (set by the step; False: every linearization is factorized).
+        factorizations: numeric factorizations made so far.
+        behind: linearizations made since the one the factorization holds (0: it is current).
     """
 
     capturable = False
@@ -33,14 +44,25 @@ class SparseDirect:
         self.factor = FACTORIZATIONS[factorization](self.assembly)
         # W straight from the factor (no compliance columns solved): CHOLMOD on the CPU device
         self.factor_compliance = isinstance(self.factor, CholmodFactor) and operator.model.device.is_cpu
+        self.keep, self.factorizations, self.behind = False, 0, 0
+        self._made = False  # a factorization exists
 
     def prepare(self) -> None:
-        """Assemble and factorize ``A`` at the operator's current rotations and scales."""
-        self.factor.factorize(self.assembly.values())
+        """A new linearization: ``A`` at the operator's current rotations and scales is factorized
+        when a solve next needs it (unless :attr:`keep` lets it use the one it has)."""
+        self.behind += 1
+
+    def _ready(self) -> None:
+        """Assemble and factorize ``A`` if a linearization is due and may not be skipped."""
+        if self.behind and not (self.keep and self._made):
+            self.factor.factorize(self.assembly.values())
+            self._made, self.behind = True, 0
+            self.factorizations += 1
 
     def solve(self, b: wp.array, x: wp.array) -> SolveResult:
         """``x[c] = A^-1 b[c]`` for ``(k, n)`` vec3d arrays. Zero columns (contact slots that
         no contact took this step) are not solved: they stay 0."""
+        self._ready()
         flat = b.numpy().reshape(b.shape[0], -1)  # on the CPU device, views: no copy
         used = np.flatnonzero(flat.any(axis=1))
         on_host = x.device.is_cpu
@@ -55,6 +77,7 @@ class SparseDirect:
 
     def solve_array(self, b: np.ndarray) -> np.ndarray:
         """Solve for right-hand sides ``(k, n, 3)`` (host arrays); fixed DOFs get 0."""
+        self._ready()
         return solve_dofs(self.factor, b.reshape(b.shape[0], -1)).reshape(b.shape)
 
     def compliance(self, rows, scale: float, only: np.ndarray | None = None) -> None:
@@ -65,6 +88,7 @@ class SparseDirect:
         columns. With ``only`` (bool, ``(rows,)``), the rows outside it get no ``Z`` column: their
         row and column of ``W`` stay 0 (the contacts left out of the lazy set, see
         :mod:`warpsoft.resolve.contact_set`). CPU device only (the rows' arrays are read in place)."""
+        self._ready()
         h_row, h_node, h_coef = rows.h_row.numpy(), rows.h_node.numpy(), rows.h_coef.numpy()
         dof = self.assembly.renum[3 * h_node[:, None] + np.arange(3)]  # (entries, 3)
         keep = (dof >= 0) & (h_coef != 0.0)
