@@ -343,13 +343,21 @@ class Simulator:
         m = self.model
         if m.probe_nodes is None:
             return {}
+        if world is None and m.num_worlds > 1:
+            raise SceneError(f"probe_positions: this model has {m.num_worlds} worlds: say which (world=...)")
+        return {name: p for name, p, w in zip(m.probe_names, self.probe_array(state), m.probe_world, strict=True)
+                if world is None or w == world}
+
+    def probe_array(self, state: State | None = None) -> np.ndarray:
+        """Every probe of every world at once (m), ``(probes, 3)`` in the model's order
+        (``model.probe_names``, ``model.probe_world``): one launch and one read."""
+        m = self.model
+        if m.probe_nodes is None:
+            return np.zeros((0, 3))
         out = wp.zeros(len(m.probe_names), dtype=wp.vec3d, device=m.device)
         launch(mapping.interpolate_points, len(m.probe_names),
                inputs=[(state or self.state).q, m.probe_nodes, m.probe_weights], outputs=[out], device=m.device)
-        if world is None and m.num_worlds > 1:
-            raise SceneError(f"probe_positions: this model has {m.num_worlds} worlds: say which (world=...)")
-        return {name: p for name, p, w in zip(m.probe_names, out.numpy(), m.probe_world, strict=True)
-                if world is None or w == world}
+        return out.numpy()
 
     def internal_forces(self, state: State | None = None) -> np.ndarray:
         """Internal forces (N), ``(n, 3)``, at ``state`` (current by default)."""

@@ -1,13 +1,16 @@
 """Command line: ``warpsoft run SCENE.py [--steps N] [--device cpu|cuda] [--usd OUT] [--report OUT.json]
-[--param key=value ...]``, ``warpsoft params SCENE.py``, ``warpsoft plot REPORT.json``, ``warpsoft --version``."""
+[--param key=value ...]``, ``warpsoft sweep SCENE.py --grid ... | --random N ... --out DIR`` (see
+:mod:`warpsoft.io.sweep`), ``warpsoft params SCENE.py``, ``warpsoft plot REPORT.json``,
+``warpsoft --version``."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 import time
+from pathlib import Path
 
-from ..errors import WarpsoftError
+from ..errors import SceneError, WarpsoftError
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -43,7 +46,59 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--flush-every", type=int, default=50, metavar="N",
                    help="write the report and the USD every N steps as the run goes (default: 50)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    sw = sub.add_parser("sweep", help="run many designs of a scene (its parameters over a grid or random ranges), "
+                                      "batched as the worlds of one model; a results table and a plot")
+    sw.add_argument("scene", help="path of the scene file")
+    sw.add_argument("--grid", action="append", default=[], metavar="NAME=[V1,V2,...]",
+                    help="a swept parameter and its values; several --grid make every combination")
+    sw.add_argument("--random", nargs="+", default=None, metavar="N | NAME=LO:HI[:log]",
+                    help="N designs spread over the ranges by a Latin hypercube (log: uniform in the logarithm)")
+    sw.add_argument("--seed", type=int, default=0, help="of --random (default: 0)")
+    sw.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
+                    help="a scene parameter fixed for every design (repeatable)")
+    sw.add_argument("--steps", type=int, default=None, help="steps per design (default: the scene's)")
+    sw.add_argument("--batch", type=int, default=256, help="designs stepped together as one model (default: 256)")
+    sw.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:0 (default: Warp's default)")
+    sw.add_argument("--solver", choices=["auto", "pcg", "direct", "jacobi"], default="auto")
+    sw.add_argument("--workers", type=int, default=None,
+                    help="processes meshing the designs first (default: the CPU count; 1: in this process)")
+    sw.add_argument("--plot", default=None, metavar="METRIC",
+                    help="plot this metric over the swept parameters (default: the first metric)")
+    sw.add_argument("--out", required=True, help="folder of results.csv, the plot and the mesh cache")
     return p
+
+
+def sweep_command(args) -> int:
+    """``warpsoft sweep``: the designs from --grid / --random, run, the table and the plot."""
+    from .runner import check_device, parse_params
+    from .sweep import grid, parse_grid, parse_ranges, plot_sweep, random_designs, sweep
+
+    check_device(args.device)
+    if not args.grid and not args.random:
+        raise SceneError("sweep: give the designs: --grid NAME=[...] and/or --random N NAME=lo:hi")
+    designs = grid(parse_grid(args.grid)) if args.grid else [{}]
+    if args.random:
+        try:
+            count = int(args.random[0])
+        except ValueError:
+            raise SceneError(f"sweep: --random starts with the number of designs, got {args.random[0]!r}") from None
+        ranges = parse_ranges(args.random[1:])
+        designs = [g | r for g in designs for r in random_designs(count, ranges, args.seed)]
+    swept = list(designs[0])
+    results = sweep(args.scene, designs, steps=args.steps, batch=args.batch, device=args.device,
+                    fixed=parse_params(args.param), workers=args.workers, out=args.out, progress=True,
+                    solver=args.solver)
+    out = Path(args.out)
+    print(f"warpsoft sweep: {sum(r.status == 'completed' for r in results)} of {len(results)} designs completed; "
+          f"table: {out / 'results.csv'}")
+    for r in results:
+        if r.status != "completed":
+            print(f"  design {r.index} {r.params}: {r.status}: {r.error}")
+    metrics = next((list(r.metrics) for r in results if r.metrics), [])
+    metric = args.plot or (metrics[0] if metrics else None)
+    if metric is not None and swept:
+        print(f"  plot: {plot_sweep(results, metric, swept[:2], out / f'{metric}.png')}")
+    return 0
 
 
 def scene_params(path: str) -> str:
@@ -79,6 +134,8 @@ def main(argv: list[str] | None = None) -> int:
             for path in plot_report(args.report, args.out):
                 print(path)
             return 0
+        if args.command == "sweep":
+            return sweep_command(args)
         params = parse_params(args.param)
         started = time.perf_counter()
         if not args.quiet:  # meshing may take a while: say what is going on

@@ -192,7 +192,9 @@ def _cached(name: str, key: str, make) -> TetMesh:
             return TetMesh(data["nodes"], data["tets"], name=name)
     mesh = make()
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez(path, nodes=mesh.nodes, tets=mesh.tets)
+    part = path.with_name(f"{path.stem}.{os.getpid()}.part.npz")  # processes meshing at once (a sweep's)
+    np.savez(part, nodes=mesh.nodes, tets=mesh.tets)
+    os.replace(part, path)  # never read half-written
     return mesh
 
 

@@ -1,0 +1,108 @@
+"""Sweeps: designs from a grid or a Latin hypercube, stepped as the worlds of one model, each as
+it runs alone; a failing design isolated; the results table and the plot."""
+
+import csv
+import math
+
+import numpy as np
+import pytest
+
+import warpsoft as ws
+from warpsoft.io.cli import main
+from warpsoft.io.sweep import grid, parse_grid, parse_ranges, random_designs, sweep
+
+BEAM = '''
+import warpsoft as ws
+
+
+def build(young_modulus=1e6, tip_force=0.01, length=0.1):
+    """A cantilever of 10 x 2 x 2 boxes, quasi-static, a tip load (N) along -z; probe ``tip``."""
+    scene = ws.Scene("beam", static=True, steps=2)
+    body = scene.add_body("beam", ws.box_grid((0.0, -0.005, -0.005), (length, 0.01, 0.01), (10, 2, 2)),
+                          ws.Material(young_modulus, 0.3, 1000.0))
+    scene.fix(body, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0)))
+    scene.add_force(body, ws.OnPlane((length, 0.0, 0.0), (1.0, 0.0, 0.0)), (0.0, 0.0, -tip_force))
+    scene.add_probe("tip", (length, 0.0, 0.0))
+    return scene
+
+
+def metrics(result):
+    if result.params.get("tip_force") == 0.02:
+        raise ValueError("no metric for this one")
+    return {"deflection": -result.probes["tip"][-1][2]}
+'''
+
+
+@pytest.fixture
+def beam(tmp_path):
+    path = tmp_path / "beam.py"
+    path.write_text(BEAM)
+    return path
+
+
+def test_grid_and_latin_hypercube_designs():
+    assert grid({"a": [1, 2], "b": ["x", "y", "z"]})[:4] == [{"a": 1, "b": "x"}, {"a": 1, "b": "y"},
+                                                             {"a": 1, "b": "z"}, {"a": 2, "b": "x"}]
+    assert len(grid(parse_grid(["a=[1, 2]", "b=(3, 4, 5)"]))) == 6
+    designs = random_designs(8, parse_ranges(["E=1e5:1e6:log", "r=0.002:0.004"]), seed=3)
+    e = np.array([d["E"] for d in designs])
+    r = np.array([d["r"] for d in designs])
+    # a Latin hypercube: each eighth of each range (of log E) holds exactly one design
+    assert sorted(np.floor(8 * (np.log(e) - math.log(1e5)) / math.log(10)).astype(int)) == list(range(8))
+    assert sorted(np.floor(8 * (r - 0.002) / 0.002).astype(int)) == list(range(8))
+    assert random_designs(8, {"r": (0.0, 1.0)}, seed=3) != random_designs(8, {"r": (0.0, 1.0)}, seed=4)
+    with pytest.raises(ws.SceneError, match=r"range of 'E' must be finite with lo < hi .* got 0.0:1.0"):
+        random_designs(4, {"E": (0.0, 1.0, "log")})
+    with pytest.raises(ws.SceneError, match=r"--random expects NAME=lo:hi or NAME=lo:hi:log, got 'E=1:x'"):
+        parse_ranges(["E=1:x"])
+    with pytest.raises(ws.SceneError, match=r"--grid expects NAME=\[v1, v2, ...\], got 'a=3'"):
+        parse_grid(["a=3"])
+
+
+def test_designs_batched_step_as_alone_and_a_failure_stays_with_its_design(beam, tmp_path):
+    """Six designs, three per model: each completed design's trajectory equals its run alone
+    (one per model) to 1e-12 m, and the deflection goes as 1 / E (linear regime). A design whose
+    load blows its step up fails alone (its batch is run again design by design), one whose build
+    is refused is invalid, one whose metric raises is marked: the others complete."""
+    designs = [{"young_modulus": 1e6}, {"tip_force": 1e30}, {"young_modulus": 2e6},
+               {"young_modulus": -1.0}, {"young_modulus": 4e6}, {"tip_force": 0.02}]
+    batched = sweep(beam, designs, batch=3, workers=1, out=tmp_path / "out", solver="direct")
+    alone = sweep(beam, designs, batch=1, workers=1, solver="direct")
+    status = [r.status for r in batched]
+    assert status == ["completed", "failed", "completed", "invalid", "completed", "failed"]
+    assert status == [r.status for r in alone]
+    assert "moved" in batched[1].error and "young_modulus must be > 0 Pa, got -1.0" in batched[3].error
+    assert batched[5].error == "metrics(): ValueError: no metric for this one"
+    for a, b in zip(batched, alone, strict=True):
+        if a.status == "completed":
+            assert a.steps == 2 and a.probes["tip"].shape == (3, 3)
+            assert np.abs(a.probes["tip"] - b.probes["tip"]).max() < 1e-12
+    d = [batched[k].metrics["deflection"] for k in (0, 2, 4)]
+    assert d[0] > 1e-4
+    assert d[0] / d[1] == pytest.approx(2.0, rel=1e-3) and d[1] / d[2] == pytest.approx(2.0, rel=1e-3)
+    with open(tmp_path / "out" / "results.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["status"] for r in rows] == status
+    assert float(rows[2]["deflection"]) == pytest.approx(d[1], rel=1e-12) and rows[2]["young_modulus"] == "2000000.0"
+    assert rows[1]["deflection"] == "" and "moved" in rows[1]["error"]
+
+
+def test_the_sweep_command_writes_the_table_and_the_plot(beam, tmp_path, capsys):
+    """``warpsoft sweep`` over a grid crossed with random moduli, meshed by two processes."""
+    out = tmp_path / "sweep"
+    code = main(["sweep", str(beam), "--grid", "tip_force=[0.01, 0.015]", "--random", "2",
+                 "young_modulus=5e5:2e6:log", "--param", "length=0.08", "--batch", "4", "--workers", "2",
+                 "--out", str(out)])
+    assert code == 0
+    with open(out / "results.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 4 and all(r["status"] == "completed" and r["length"] == "0.08" for r in rows)
+    # the same modulus under 1.5 times the load bends 1.5 times as far
+    by = {(r["tip_force"], r["young_modulus"]): float(r["deflection"]) for r in rows}
+    for (force, modulus), v in by.items():
+        if force == "0.015":
+            assert v / by[("0.01", modulus)] == pytest.approx(1.5, rel=1e-3)
+    assert (out / "deflection.png").stat().st_size > 10_000
+    assert "4 of 4 designs completed" in capsys.readouterr().out
+    assert main(["sweep", str(beam), "--out", str(out)]) == 2  # no design given: a clear error
+    assert "give the designs" in capsys.readouterr().err

@@ -1,0 +1,370 @@
+"""Sweeps over a scene's parameters: many designs stepped together, as the worlds of one model.
+
+    warpsoft sweep SCENE.py [--grid NAME=[v, ...] ...] [--random N NAME=lo:hi[:log] ...]
+                            [--param NAME=VALUE ...] [--batch 256] [--steps N] [--device cuda] --out DIR
+
+A design is one dictionary of scene parameters (``build(**params)``). Designs are meshed first,
+in parallel processes, into the mesh cache (``WARPSOFT_MESH_CACHE``, by default a folder of
+the output). They are then stepped ``batch`` at a time: each batch is one
+:func:`warpsoft.finalize` model with one world per design, so its designs share every launch.
+A design whose ``build`` fails is recorded as ``invalid``. In a batch whose step fails, each
+design is run again alone, so the failure is that design's alone (``failed``, with the steps it
+finished); the others complete.
+
+Per design (:class:`DesignResult`): the probe and effector trajectories, the actuators' delta and
+lambda, the effector error, the warnings. The row of the results table holds the parameters,
+the status, and the metrics: the scene's own (an optional ``metrics(result) -> dict`` next to
+``build``), or by default each probe's last position and each effector's last error. The table
+is written as ``results.csv``; ``plot_sweep`` draws a metric over one or two parameters.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneError, SimulationError, WarpsoftError
+from ..model import finalize
+from ..simulator import Simulator
+from .runner import build_scene, load_scene_module, parse_value
+
+
+@dataclass
+class DesignResult:
+    """One design's run. Trajectories are ``(steps + 1, 3)`` for probes (the initial position
+    first) and ``(steps, ...)`` for what a step reports; units as in
+    :class:`warpsoft.stats.WorldStats` (m, N, Pa).
+
+    Attributes:
+        index: the design's place in the sweep.
+        params: its scene parameters (the sweep's fixed ones included).
+        status: "completed", "failed" (a step failed: ``steps`` says how many finished) or
+            "invalid" (its ``build`` failed).
+        error: why it failed, else None.
+        steps: steps finished.
+        seconds: wall time of its batch, shared among the batch's designs (s).
+        metrics: the table's values for it (see the module doc).
+    """
+
+    index: int
+    params: dict
+    status: str = "completed"
+    error: str | None = None
+    steps: int = 0
+    seconds: float = 0.0
+    probes: dict[str, np.ndarray] = field(default_factory=dict)
+    effectors: dict[str, np.ndarray] = field(default_factory=dict)
+    targets: dict[str, np.ndarray] = field(default_factory=dict)
+    effector_error: dict[str, np.ndarray] = field(default_factory=dict)
+    actuator_delta: dict[str, np.ndarray] = field(default_factory=dict)
+    actuator_lambda: dict[str, np.ndarray] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    metrics: dict[str, float] = field(default_factory=dict)
+
+
+# ---- designs -------------------------------------------------------------------------------
+def grid(axes: dict[str, Sequence]) -> list[dict]:
+    """Every combination of the values of ``axes`` (name -> values), the last name varying fastest."""
+    for name, values in axes.items():
+        if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not len(values):
+            raise SceneError(f"sweep: grid axis {name!r} needs a non-empty list of values, got {values!r}")
+    names = list(axes)
+    return [dict(zip(names, combo, strict=True)) for combo in itertools.product(*(axes[n] for n in names))]
+
+
+def random_designs(count: int, ranges: dict[str, tuple], seed: int = 0) -> list[dict]:
+    """``count`` designs spread over ``ranges`` (name -> ``(lo, hi)`` or ``(lo, hi, "log")``) by a
+    Latin hypercube (SciPy's ``qmc``): each parameter's range is cut into ``count`` equal slices
+    (of its logarithm with "log"), each slice used once."""
+    from scipy.stats import qmc
+
+    if int(count) < 1:
+        raise SceneError(f"sweep: --random needs at least 1 design, got {count}")
+    bounds = {}
+    for name, r in ranges.items():
+        lo, hi, *scale = r
+        log = scale == ["log"]
+        if scale and not log:
+            raise SceneError(f"sweep: range of {name!r}: the third field may only be 'log', got {scale[0]!r}")
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi) or (log and lo <= 0.0):
+            raise SceneError(f"sweep: range of {name!r} must be finite with lo < hi (and lo > 0 for log), "
+                             f"got {lo}:{hi}")
+        bounds[name] = (math.log(lo), math.log(hi), True) if log else (float(lo), float(hi), False)
+    if not bounds:
+        raise SceneError("sweep: --random needs at least one NAME=lo:hi range")
+    unit = qmc.LatinHypercube(d=len(bounds), seed=seed).random(int(count))
+    designs = []
+    for u in unit:
+        d = {}
+        for x, (name, (lo, hi, log)) in zip(u, bounds.items(), strict=True):
+            v = lo + x * (hi - lo)
+            d[name] = float(math.exp(v) if log else v)
+        designs.append(d)
+    return designs
+
+
+def parse_grid(items: Sequence[str]) -> dict[str, list]:
+    """``["name=[v1, v2]", ...]`` (CLI ``--grid``) -> axes for :func:`grid`."""
+    axes = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        value = parse_value(text.strip())
+        if not sep or not name.strip() or not isinstance(value, (list, tuple)):
+            raise SceneError(f"sweep: --grid expects NAME=[v1, v2, ...], got {item!r}")
+        axes[name.strip()] = list(value)
+    return axes
+
+
+def parse_ranges(items: Sequence[str]) -> dict[str, tuple]:
+    """``["name=lo:hi", "name=lo:hi:log", ...]`` (CLI ``--random N ...``) -> ranges for
+    :func:`random_designs`."""
+    ranges = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        fields = text.strip().split(":")
+        try:
+            if not sep or not name.strip() or len(fields) not in (2, 3):
+                raise ValueError
+            ranges[name.strip()] = (float(fields[0]), float(fields[1]), *fields[2:])
+        except ValueError:
+            raise SceneError(f"sweep: --random expects NAME=lo:hi or NAME=lo:hi:log, got {item!r}") from None
+    return ranges
+
+
+# ---- meshing in parallel processes ----------------------------------------------------------
+def _build_for_cache(scene_file: str, params: dict) -> str | None:
+    """In a worker process: build the scene once, so that its meshes land in the cache."""
+    try:
+        build_scene(scene_file, params)
+    except WarpsoftError as exc:  # the sweep records it when it builds the design itself
+        return str(exc)
+    return None
+
+
+def premesh(scene_file: str | Path, designs: Sequence[dict], workers: int) -> None:
+    """Build every design once in ``workers`` processes (spawned: no Warp state is shared), so
+    that the sweep's own builds read their meshes from the cache. Nothing to do for one worker."""
+    if workers <= 1 or len(designs) <= 1:
+        return
+    with ProcessPoolExecutor(max_workers=min(workers, len(designs)), mp_context=get_context("spawn")) as pool:
+        list(pool.map(_build_for_cache, [str(scene_file)] * len(designs), designs))
+
+
+# ---- the sweep -----------------------------------------------------------------------------
+def sweep(scene_file: str | Path, designs: Sequence[dict], steps: int | None = None, batch: int = 256,
+          device: str | None = None, fixed: dict | None = None, workers: int | None = None,
+          out: str | Path | None = None, progress: bool = False, **options) -> list[DesignResult]:
+    """Run every design of ``designs`` (scene parameters, each merged over ``fixed``) for ``steps``
+    steps (the first design's scene's default if None), ``batch`` designs per model. ``workers``
+    processes mesh the designs first (default: the CPU count; 1: none). ``options`` go to the
+    :class:`Simulator`. With ``out``, writes ``results.csv`` there (see :func:`write_table`).
+    Returns one :class:`DesignResult` per design, in order."""
+    if int(batch) < 1:
+        raise SceneError(f"sweep: batch must be >= 1, got {batch}")
+    if not designs:
+        raise SceneError("sweep: no design to run")
+    module = load_scene_module(scene_file)
+    metrics = getattr(module, "metrics", None)
+    designs = [dict(fixed or {}) | dict(d) for d in designs]
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+    with mesh_cache(out):
+        results = _run_designs(scene_file, designs, steps, int(batch), device, workers, metrics, progress, options)
+    if out is not None:
+        write_table(results, out / "results.csv")
+    return results
+
+
+@contextmanager
+def mesh_cache(out: Path | None):
+    """The mesh cache of the sweep: ``WARPSOFT_MESH_CACHE`` if set, else ``out/mesh_cache`` while
+    the sweep runs (its meshing processes inherit it), else none (the designs mesh once each)."""
+    if out is None or os.environ.get("WARPSOFT_MESH_CACHE"):
+        yield
+        return
+    os.environ["WARPSOFT_MESH_CACHE"] = str(out / "mesh_cache")
+    try:
+        yield
+    finally:
+        del os.environ["WARPSOFT_MESH_CACHE"]
+
+
+def _run_designs(scene_file, designs: list[dict], steps: int | None, batch: int, device: str | None,
+                 workers: int | None, metrics: Callable | None, progress: bool, options: dict) -> list[DesignResult]:
+    premesh(scene_file, designs, (os.cpu_count() or 1) if workers is None else int(workers))
+    results: list[DesignResult] = []
+    for start in range(0, len(designs), batch):
+        chunk = [DesignResult(start + k, d) for k, d in enumerate(designs[start:start + batch])]
+        scenes = []
+        for r in chunk:
+            try:
+                scenes.append(build_scene(scene_file, r.params))
+            except WarpsoftError as exc:
+                r.status, r.error = "invalid", f"{type(exc).__name__}: {exc}"
+        valid = [r for r in chunk if r.status != "invalid"]
+        if steps is None and scenes:
+            steps = scenes[0].steps
+        if valid:
+            run_batch(scenes, valid, int(steps), device, options)
+        for r in chunk:
+            r.metrics = design_metrics(r, metrics)
+        results += chunk
+        if progress:
+            done = sum(r.status == "completed" for r in results)
+            print(f"warpsoft sweep: {len(results)}/{len(designs)} designs run, {done} completed", flush=True)
+    return results
+
+
+def run_batch(scenes: list, results: list[DesignResult], steps: int, device: str | None, options: dict) -> None:
+    """Step ``scenes`` together (one world each) and fill ``results``; if a step fails, run each
+    design alone, so that only the failing ones are marked."""
+    try:
+        _step_worlds(scenes, results, steps, device, options)
+    except SimulationError as exc:
+        if len(scenes) == 1:
+            results[0].status, results[0].error = "failed", f"{type(exc).__name__}: {exc}"
+            return
+        for scene, r in zip(scenes, results, strict=True):
+            _clear(r)
+            run_batch([scene], [r], steps, device, options)
+
+
+def _clear(r: DesignResult) -> None:
+    r.steps, r.probes, r.effectors, r.targets, r.effector_error = 0, {}, {}, {}, {}
+    r.actuator_delta, r.actuator_lambda, r.warnings = {}, {}, []
+
+
+def _step_worlds(scenes: list, results: list[DesignResult], steps: int, device: str | None, options: dict) -> None:
+    """One model of ``scenes``, stepped ``steps`` times; each world's record into its result (as
+    it goes: a failure keeps the steps finished)."""
+    sim = Simulator(finalize(scenes, device), device=device, **options)
+    m = sim.model
+    worlds = range(m.num_worlds)
+    mine = [[i for i, w in enumerate(m.probe_world) if w == k] for k in worlds]  # each world's probes
+    probes = [{m.probe_names[i]: [] for i in mine[w]} for w in worlds]
+    tracks = [{"effectors": {}, "targets": {}, "effector_error": {}, "actuator_delta": {}, "actuator_lambda": {}}
+              for _ in worlds]
+
+    def record_probes() -> None:
+        points = sim.probe_array()
+        for w in worlds:
+            for i in mine[w]:
+                probes[w][m.probe_names[i]].append(points[i])
+
+    record_probes()
+    started = time.perf_counter()
+    try:
+        for _ in range(steps):
+            stats = sim.step()
+            record_probes()
+            for w, (r, ws) in enumerate(zip(results, stats.worlds, strict=True)):
+                for what, track in tracks[w].items():
+                    for name, v in getattr(ws, what).items():
+                        track.setdefault(name, []).append(v)
+                label = sim.world_label(w)
+                r.warnings += [msg for msg in stats.warnings if m.num_worlds == 1 or label in msg]
+                r.steps += 1
+    finally:
+        seconds = (time.perf_counter() - started) / len(results)
+        for w, r in enumerate(results):
+            r.seconds = seconds
+            r.probes = {n: np.array(v) for n, v in probes[w].items()}
+            for what, track in tracks[w].items():
+                setattr(r, what, {n: np.array(v) for n, v in track.items()})
+
+
+def design_metrics(r: DesignResult, metrics: Callable | None) -> dict[str, float]:
+    """The table's values of a design: the scene's ``metrics(result)`` (a dict of numbers), or
+    each probe's last position (``NAME_x`` ...) and each effector's last error (m). None for a
+    design that did not complete. An error in ``metrics`` fails the design, named."""
+    if r.status != "completed":
+        return {}
+    if metrics is None:
+        values = {}
+        for name, p in r.probes.items():
+            values |= {f"{name}_{a}": float(v) for a, v in zip("xyz", p[-1], strict=True)}
+        values |= {f"{name}_error": float(e[-1]) for name, e in r.effector_error.items()}
+        return values
+    try:
+        values = metrics(r)
+        if not isinstance(values, dict):
+            raise TypeError(f"returned {type(values).__name__}, not a dict")
+        return {str(k): float(v) for k, v in values.items()}
+    except Exception as exc:  # the user's code: the design is marked, the sweep goes on
+        r.status, r.error = "failed", f"metrics(): {type(exc).__name__}: {exc}"
+        return {}
+
+
+def table_rows(results: Sequence[DesignResult]) -> list[dict]:
+    """One row per design: index, status, steps, seconds, parameters, metrics, error."""
+    return [{"design": r.index, "status": r.status, "steps": r.steps, "seconds": r.seconds} | r.params | r.metrics
+            | {"error": r.error or ""} for r in results]
+
+
+def write_table(results: Sequence[DesignResult], path: str | Path) -> Path:
+    """The results table as CSV (columns: every key of every row, in order of first use)."""
+    rows = table_rows(results)
+    columns = list(dict.fromkeys(k for row in rows for k in row))
+    path = Path(path)
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=columns, restval="")
+        writer.writeheader()
+        writer.writerows(rows)
+    return path
+
+
+def plot_sweep(results: Sequence[DesignResult], metric: str, params: Sequence[str], path: str | Path) -> Path:
+    """``metric`` over one parameter (a line per value of a second one, if given, on a grid; else
+    a scatter coloured by the metric), the completed designs only; a PNG at ``path``."""
+    from matplotlib.ticker import MaxNLocator
+
+    from .plot import _pyplot
+
+    done = [r for r in results if r.status == "completed" and metric in r.metrics]
+    if not done:
+        raise SceneError(f"sweep plot: no completed design has the metric {metric!r}")
+    unknown = [p for p in params if p not in done[0].params]
+    if not params or len(params) > 2 or unknown:
+        raise SceneError(f"sweep plot: give one or two swept parameters, got {list(params)} "
+                         f"(the designs have: {', '.join(done[0].params)})")
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    x = np.array([float(r.params[params[0]]) for r in done])
+    y = np.array([r.metrics[metric] for r in done])
+    if len(params) == 1:
+        order = np.argsort(x)
+        ax.plot(x[order], y[order], "o-")
+        ax.set_ylabel(metric)
+    else:
+        z = np.array([float(r.params[params[1]]) for r in done])
+        if len(np.unique(z)) <= 8:  # a grid: one line per value of the second parameter
+            for value in np.unique(z):
+                sel = z == value
+                order = np.argsort(x[sel])
+                ax.plot(x[sel][order], y[sel][order], "o-", label=f"{params[1]} = {value:g}")
+            ax.legend()
+            ax.set_ylabel(metric)
+        else:  # scattered designs: the second parameter up, the metric as the colour
+            points = ax.scatter(x, z, c=y, cmap="viridis")
+            fig.colorbar(points, ax=ax, label=metric)
+            ax.set_ylabel(params[1])
+    ax.set_xlabel(params[0])
+    ax.xaxis.set_major_locator(MaxNLocator(5))
+    ax.set_title(f"{metric}: {len(done)} of {len(results)} designs completed")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
