@@ -1,0 +1,98 @@
+"""Throughput of many robot designs stepped as the worlds of one model: design-steps per second
+against the batch size, and a batch against the same designs stepped one at a time.
+
+    python tools/batch_bench.py --device cuda [--sizes 1 16 64 256] [--steps 20] [--alone 16]
+
+The designs are Diamonds driven directly by their four cables (a step input held), each its own
+leg radius (``--meshes`` different meshes, cycled) and Young's modulus (log-spaced over 0.1-0.3
+MPa). Per batch size: the model's DOFs, the step's median (ms) after ``--warmup`` steps, and the
+design-steps per second (designs / step time). ``--alone K``: the first K designs one at a time
+(the sum of their medians) against the batch of the same K. Writes batch.json and batch.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+
+import warpsoft as ws
+from warpsoft.io.runner import build_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+LEG_RADII = (0.009, 0.010, 0.011, 0.012, 0.013, 0.014, 0.015, 0.016)  # m: one mesh each
+
+
+def designs(count: int, meshes: int) -> list[dict]:
+    """``count`` Diamond designs: leg radius cycling over ``meshes`` values, modulus log-spaced."""
+    moduli = np.geomspace(1e5, 3e5, count)
+    return [{"leg_radius": LEG_RADII[k % meshes], "young_modulus": float(moduli[k]),
+             "cable_displacements": (0.004, 0.0, 0.002, 0.0), "ramp_time": 0.05} for k in range(count)]
+
+
+def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -> tuple[float, int]:
+    """Median step time (s) of ``scenes`` as one model, and its DOFs."""
+    sim = ws.Simulator(ws.finalize(scenes, device), device=device, **options)
+    for _ in range(warmup):
+        sim.step()
+    times = []
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        sim.step()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)), sim.model.num_dofs
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--sizes", type=int, nargs="*", default=[1, 16, 64])
+    ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--warmup", type=int, default=3)
+    ap.add_argument("--meshes", type=int, default=4, help=f"different meshes, at most {len(LEG_RADII)}")
+    ap.add_argument("--alone", type=int, default=0, help="also step the first K designs one at a time")
+    ap.add_argument("--solver", default="auto")
+    ap.add_argument("--out", default="out/batch")
+    args = ap.parse_args(argv)
+    everything = designs(max(args.sizes + [args.alone]), args.meshes)
+    t0 = time.perf_counter()
+    scenes = [build_scene(ROOT / "scenes/diamond.py", d) for d in everything]
+    print(f"{len(scenes)} designs built in {time.perf_counter() - t0:.1f} s", flush=True)
+    rows = []
+    for n in args.sizes:
+        t0 = time.perf_counter()
+        median, dofs = step_median(scenes[:n], args.device, args.steps, args.warmup, solver=args.solver)
+        rows.append({"designs": n, "dofs": dofs, "step_ms": 1e3 * median, "design_steps_per_s": n / median,
+                     "wall_s": time.perf_counter() - t0})
+        print(f"batch {n:5d}: {dofs:8d} DOFs  step {1e3 * median:8.2f} ms  {n / median:9.1f} design-steps/s",
+              flush=True)
+    alone = None
+    if args.alone:
+        k = args.alone
+        one = [step_median([s], args.device, args.steps, args.warmup, solver=args.solver)[0] for s in scenes[:k]]
+        together = step_median(scenes[:k], args.device, args.steps, args.warmup, solver=args.solver)[0]
+        alone = {"designs": k, "one_at_a_time_ms": 1e3 * sum(one), "batched_ms": 1e3 * together,
+                 "ratio": sum(one) / together}
+        print(f"{k} designs: one at a time {1e3 * sum(one):.2f} ms per step of all, batched {1e3 * together:.2f} ms: "
+              f"{sum(one) / together:.1f}x", flush=True)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    meta = {"date": date.today().isoformat(), "device": args.device, "command": " ".join(sys.argv)}
+    (out / "batch.json").write_text(json.dumps({"meta": meta, "rows": rows, "alone": alone}, indent=1))
+    lines = [f"{meta['date']}, device {args.device}: `{meta['command']}`", "",
+             "| designs | DOFs | step median (ms) | design-steps / s |", "|---|---|---|---|"]
+    lines += [f"| {r['designs']} | {r['dofs']} | {r['step_ms']:.2f} | {r['design_steps_per_s']:.1f} |" for r in rows]
+    if alone:
+        lines += ["", f"{alone['designs']} designs one at a time: {alone['one_at_a_time_ms']:.2f} ms per step of "
+                  f"all; batched: {alone['batched_ms']:.2f} ms; ratio {alone['ratio']:.1f}"]
+    (out / "batch.md").write_text("\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
