@@ -167,8 +167,9 @@ def sweep(scene_file: str | Path, designs: Sequence[dict], steps: int | None = N
           out: str | Path | None = None, progress: bool = False, **options) -> list[DesignResult]:
     """Run every design of ``designs`` (scene parameters, each merged over ``fixed``) for ``steps``
     steps (the first design's scene's default if None), ``batch`` designs per model. ``workers``
-    processes mesh the designs first (default: the CPU count; 1: none). ``options`` go to the
-    :class:`Simulator`. With ``out``, writes ``results.csv`` there (see :func:`write_table`).
+    processes mesh the designs first into the mesh cache (default: the CPU count; 1: none; no
+    cache, no meshing ahead). ``options`` go to the :class:`Simulator`. With ``out``, writes
+    ``results.csv`` there after each batch (see :func:`write_table`).
     Returns one :class:`DesignResult` per design, in order."""
     if int(batch) < 1:
         raise SceneError(f"sweep: batch must be >= 1, got {batch}")
@@ -181,10 +182,7 @@ def sweep(scene_file: str | Path, designs: Sequence[dict], steps: int | None = N
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
     with mesh_cache(out):
-        results = _run_designs(scene_file, designs, steps, int(batch), device, workers, metrics, progress, options)
-    if out is not None:
-        write_table(results, out / "results.csv")
-    return results
+        return _run_designs(scene_file, designs, steps, int(batch), device, workers, metrics, progress, out, options)
 
 
 @contextmanager
@@ -202,8 +200,11 @@ def mesh_cache(out: Path | None):
 
 
 def _run_designs(scene_file, designs: list[dict], steps: int | None, batch: int, device: str | None,
-                 workers: int | None, metrics: Callable | None, progress: bool, options: dict) -> list[DesignResult]:
-    premesh(scene_file, designs, (os.cpu_count() or 1) if workers is None else int(workers))
+                 workers: int | None, metrics: Callable | None, progress: bool, out: Path | None,
+                 options: dict) -> list[DesignResult]:
+    """The sweep's body; the table is written after each batch (a sweep stopped keeps its batches)."""
+    if os.environ.get("WARPSOFT_MESH_CACHE"):  # (without a cache, meshing ahead would mesh twice)
+        premesh(scene_file, designs, (os.cpu_count() or 1) if workers is None else int(workers))
     results: list[DesignResult] = []
     for start in range(0, len(designs), batch):
         chunk = [DesignResult(start + k, d) for k, d in enumerate(designs[start:start + batch])]
@@ -221,6 +222,8 @@ def _run_designs(scene_file, designs: list[dict], steps: int | None, batch: int,
         for r in chunk:
             r.metrics = design_metrics(r, metrics)
         results += chunk
+        if out is not None:
+            write_table(results, out / "results.csv")
         if progress:
             done = sum(r.status == "completed" for r in results)
             print(f"warpsoft sweep: {len(results)}/{len(designs)} designs run, {done} completed", flush=True)
