@@ -129,6 +129,8 @@ class Simulator:
         self.health_flag = wp.zeros(1, dtype=wp.int32, device=d)  # count of non-finite nodes
         self.health_step = wp.zeros(1, dtype=wp.float64, device=d)  # largest |dx|^2 (m^2)
         self.inverted = wp.zeros(m.num_worlds, dtype=wp.int32, device=d)  # elements with det F <= 0, per world
+        # every probe's position (m), made once: a launch on the same arrays is replayed (launch.py)
+        self.probes = wp.zeros(len(m.probe_names), dtype=wp.vec3d, device=d)
         self.size = float(np.linalg.norm(np.ptp(m.rest_np, axis=0)))  # model size (m) for step-size warnings
 
         h = m.dt
@@ -354,10 +356,10 @@ class Simulator:
         m = self.model
         if m.probe_nodes is None:
             return np.zeros((0, 3))
-        out = wp.zeros(len(m.probe_names), dtype=wp.vec3d, device=m.device)
         launch(mapping.interpolate_points, len(m.probe_names),
-               inputs=[(state or self.state).q, m.probe_nodes, m.probe_weights], outputs=[out], device=m.device)
-        return out.numpy()
+               inputs=[(state or self.state).q, m.probe_nodes, m.probe_weights], outputs=[self.probes],
+               device=m.device)
+        return self.probes.numpy().copy()  # (on the CPU device a view of the buffer: the caller keeps a copy)
 
     def internal_forces(self, state: State | None = None) -> np.ndarray:
         """Internal forces (N), ``(n, 3)``, at ``state`` (current by default)."""

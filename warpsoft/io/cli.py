@@ -52,7 +52,8 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("--grid", action="append", default=[], metavar="NAME=[V1,V2,...]",
                     help="a swept parameter and its values; several --grid make every combination")
     sw.add_argument("--random", nargs="+", default=None, metavar="N | NAME=LO:HI[:log]",
-                    help="N designs spread over the ranges by a Latin hypercube (log: uniform in the logarithm)")
+                    help="N designs spread over the ranges by a Latin hypercube (log: uniform in the logarithm); "
+                         "with --grid, each grid point takes the same N")
     sw.add_argument("--seed", type=int, default=0, help="of --random (default: 0)")
     sw.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
                     help="a scene parameter fixed for every design (repeatable)")
