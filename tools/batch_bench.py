@@ -35,17 +35,25 @@ def designs(count: int, meshes: int) -> list[dict]:
              "cable_displacements": (0.004, 0.0, 0.002, 0.0), "ramp_time": 0.05} for k in range(count)]
 
 
-def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -> tuple[float, int]:
-    """Median step time (s) of ``scenes`` as one model, and its DOFs."""
+def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -> tuple[float, int, dict]:
+    """Median step time (s) of ``scenes`` as one model, its DOFs, and what the solve did: the CG
+    iterations of a step (median over the timed steps), and the preconditioner's distinct blocks
+    and device memory when it keeps them per world."""
+    t0 = time.perf_counter()
     sim = ws.Simulator(ws.finalize(scenes, device), device=device, **options)
     for _ in range(warmup):
         sim.step()
-    times = []
+    setup = time.perf_counter() - t0
+    times, its = [], []
     for _ in range(steps):
         t0 = time.perf_counter()
-        sim.step()
+        stats = sim.step()
         times.append(time.perf_counter() - t0)
-    return float(np.median(times)), sim.model.num_dofs
+        its.append(stats.cg_iterations)
+    pre = getattr(sim.solver, "precond", None)
+    info = {"cg_iterations": float(np.median(its)), "setup_s": setup, "preconditioner": type(pre).__name__,
+            "blocks": getattr(pre, "blocks", None), "precond_mb": getattr(pre, "memory_bytes", 0) / 1e6}
+    return float(np.median(times)), sim.model.num_dofs, info
 
 
 def main(argv=None) -> int:
@@ -57,6 +65,8 @@ def main(argv=None) -> int:
     ap.add_argument("--meshes", type=int, default=4, help=f"different meshes, at most {len(LEG_RADII)}")
     ap.add_argument("--alone", type=int, default=0, help="also step the first K designs one at a time")
     ap.add_argument("--solver", default="auto")
+    ap.add_argument("--preconditioner", default="auto", help="pcg's: auto, blocks, dense, host")
+    ap.add_argument("--share-tolerance", type=float, default=1e-10, help="blocks: when worlds of one mesh share")
     ap.add_argument("--out", default="out/batch")
     args = ap.parse_args(argv)
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
@@ -64,18 +74,20 @@ def main(argv=None) -> int:
     scenes = [build_scene(ROOT / "scenes/diamond.py", d) for d in everything]
     print(f"{len(scenes)} designs built in {time.perf_counter() - t0:.1f} s", flush=True)
     rows = []
+    options = {"solver": args.solver, "preconditioner": args.preconditioner, "share_tolerance": args.share_tolerance}
     for n in args.sizes:
         t0 = time.perf_counter()
-        median, dofs = step_median(scenes[:n], args.device, args.steps, args.warmup, solver=args.solver)
+        median, dofs, info = step_median(scenes[:n], args.device, args.steps, args.warmup, **options)
         rows.append({"designs": n, "dofs": dofs, "step_ms": 1e3 * median, "design_steps_per_s": n / median,
-                     "wall_s": time.perf_counter() - t0})
-        print(f"batch {n:5d}: {dofs:8d} DOFs  step {1e3 * median:8.2f} ms  {n / median:9.1f} design-steps/s",
-              flush=True)
+                     "wall_s": time.perf_counter() - t0, **info})
+        print(f"batch {n:5d}: {dofs:8d} DOFs  step {1e3 * median:8.2f} ms  {n / median:9.1f} design-steps/s  "
+              f"CG {info['cg_iterations']:.0f}  {info['preconditioner']} blocks {info['blocks']} "
+              f"{info['precond_mb']:.0f} MB  setup {info['setup_s']:.1f} s", flush=True)
     alone = None
     if args.alone:
         k = args.alone
-        one = [step_median([s], args.device, args.steps, args.warmup, solver=args.solver)[0] for s in scenes[:k]]
-        together = step_median(scenes[:k], args.device, args.steps, args.warmup, solver=args.solver)[0]
+        one = [step_median([s], args.device, args.steps, args.warmup, **options)[0] for s in scenes[:k]]
+        together = step_median(scenes[:k], args.device, args.steps, args.warmup, **options)[0]
         alone = {"designs": k, "one_at_a_time_ms": 1e3 * sum(one), "batched_ms": 1e3 * together,
                  "ratio": sum(one) / together}
         print(f"{k} designs: one at a time {1e3 * sum(one):.2f} ms per step of all, batched {1e3 * together:.2f} ms: "
@@ -85,8 +97,11 @@ def main(argv=None) -> int:
     meta = {"date": date.today().isoformat(), "device": args.device, "command": " ".join(sys.argv)}
     (out / "batch.json").write_text(json.dumps({"meta": meta, "rows": rows, "alone": alone}, indent=1))
     lines = [f"{meta['date']}, device {args.device}: `{meta['command']}`", "",
-             "| designs | DOFs | step median (ms) | design-steps / s |", "|---|---|---|---|"]
-    lines += [f"| {r['designs']} | {r['dofs']} | {r['step_ms']:.2f} | {r['design_steps_per_s']:.1f} |" for r in rows]
+             "| designs | DOFs | step median (ms) | design-steps / s | CG iterations | preconditioner | blocks | MB |",
+             "|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['designs']} | {r['dofs']} | {r['step_ms']:.2f} | {r['design_steps_per_s']:.1f} | "
+              f"{r['cg_iterations']:.0f} | {r['preconditioner']} | {r['blocks']} | {r['precond_mb']:.0f} |"
+              for r in rows]
     if alone:
         lines += ["", f"{alone['designs']} designs one at a time: {alone['one_at_a_time_ms']:.2f} ms per step of "
                   f"all; batched: {alone['batched_ms']:.2f} ms; ratio {alone['ratio']:.1f}"]

@@ -56,7 +56,9 @@ class Simulator:
             ``jacobi``: runs of ``check_every`` iterations).
         factorization: ``direct`` only: "cholmod" (default) or "superlu" (v1's).
         preconditioner: ``pcg`` only: how the warped factorization is applied, "host" (sparse
-            solves), "dense" (a dense inverse on the device) or "auto" (dense on CUDA).
+            solves), "dense" (a dense inverse of the whole model on the device), "blocks" (a dense
+            inverse per world, shared by worlds equal up to a factor) or "auto" ("blocks" on CUDA
+            for several worlds, "dense" on CUDA for one, "host" on the CPU).
         precision: ``pcg`` with a dense inverse: its storage, "float32" (default: half the memory
             and bytes per iteration; the CG itself runs in float64, so the solution meets the
             same tolerance, at the cost of 0-2 more iterations on the reference scenes) or "float64".
@@ -87,6 +89,13 @@ class Simulator:
             0 (default) factorizes at every linearization: the reference, and each world of a
             model steps as it does alone (the factorization is shared by all worlds). Measured
             in docs/performance.md: at 0.005 the Grasper's CPU step went from 7.5 to 5.6 ms (medians).
+        share_tolerance: ``pcg`` with ``preconditioner="blocks"``: worlds of one mesh and supports
+            share a dense inverse when their systems differ from multiples of each other by at most
+            this (the largest entry's difference, relative). The default shares exact multiples only
+            (quasi-static designs that differ in Young's modulus), so that each world iterates as it
+            does alone; a larger value (0.01) also shares dynamic designs whose mass term is small
+            against their stiffness, trading a few CG iterations for fewer host inversions and less
+            device memory.
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
@@ -94,7 +103,8 @@ class Simulator:
                  timing: bool = True, check_every: int | None = None, graphs: bool = True,
                  factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
                  qp: str = "auto", newton_iterations: int = 10, newton_tolerance: float = 0.1,
-                 line_search: int = 4, lazy_contacts: bool = True, factor_reuse: float = 0.0):
+                 line_search: int = 4, lazy_contacts: bool = True, factor_reuse: float = 0.0,
+                 share_tolerance: float = 1e-10):
         if solver not in SOLVERS:
             raise SceneError(f"Simulator: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         if not (0.0 < float(tolerance) < 1.0):
@@ -106,6 +116,8 @@ class Simulator:
         if not (0.0 <= float(factor_reuse) < 1.0):
             raise SceneError(f"Simulator: factor_reuse must lie in [0, 1), got {factor_reuse!r}")
         self.factor_reuse = float(factor_reuse)
+        if not (0.0 <= float(share_tolerance) < 1.0):
+            raise SceneError(f"Simulator: share_tolerance must lie in [0, 1), got {share_tolerance!r}")
         if check_every is not None and int(check_every) < 1:
             raise SceneError(f"Simulator: check_every must be >= 1, got {check_every!r}")
         self.model = scene if isinstance(scene, Model) else Model(scene, device)
@@ -193,7 +205,7 @@ class Simulator:
         if ncol:
             self.columns, self.X = self.rhs[1:], self.sol[1:]
         self.solver = make_solver(self.solver_name, self.operator, 1 + ncol, tolerance, max_iterations, graphs,
-                                  check_every, factorization, preconditioner, precision)
+                                  check_every, factorization, preconditioner, precision, share_tolerance)
         if ncol and self.rows.kind("contact") is not None and hasattr(self.solver, "bound"):
             self.solver.bound(self.rows.force_columns, 1)  # the free solve and the columns of the contacts in use
         if getattr(self.solver, "factor_compliance", False) and ncol:  # the correction's solve (no columns X)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from .blocks import WorldBlocks
 from .direct import SparseDirect
 from .jacobi import BlockJacobi, BlockJacobiCG
 from .operator import SystemOperator
@@ -35,11 +36,15 @@ def choose(name: str, device) -> str:
 
 def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: float = 1e-6,
                 max_iterations: int = 2000, graphs: bool = True, check_every: int | None = None,
-                factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32"):
+                factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
+                share_tolerance: float = 1e-10):
     """A solver for ``columns`` right-hand sides: ``name`` from :data:`SOLVERS` (``auto`` resolved
     by :func:`choose`). ``check_every`` is v1's residual read-back period (``jacobi`` only);
-    ``factorization`` is the direct solver's; ``preconditioner`` ("auto", "host", "dense") and
-    ``precision`` are the warped preconditioner's."""
+    ``factorization`` is the direct solver's; ``preconditioner`` ("auto", "host", "dense", "blocks")
+    and ``precision`` are the warped preconditioner's. "auto" takes "blocks" (a dense inverse per
+    world, :class:`WorldBlocks`) for a model of several worlds on CUDA, and leaves one world to
+    :class:`WarpedFactor` (dense on CUDA up to its limit, else host). ``share_tolerance``: when
+    worlds share a block (:class:`WorldBlocks`)."""
     name = choose(name, operator.model.device)
     if name == "direct":
         return SparseDirect(operator, factorization)
@@ -48,9 +53,13 @@ def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: fl
             check_every = 16 if operator.model.device.is_cuda else 1
         return BlockJacobiCG(operator, BlockJacobi(operator), columns, tolerance, max_iterations, int(check_every),
                              graphs)
-    warp_pre = WarpedFactor(operator, columns, preconditioner, precision)
+    model = operator.model
+    if preconditioner == "blocks" or (preconditioner == "auto" and model.device.is_cuda and model.num_worlds > 1):
+        warp_pre = WorldBlocks(operator, columns, precision, share_tolerance=share_tolerance)
+    else:
+        warp_pre = WarpedFactor(operator, columns, preconditioner, precision)
     return PCG(operator, warp_pre, columns, tolerance, max_iterations, graphs)
 
 
 __all__ = ["PCG", "SOLVERS", "BlockJacobi", "BlockJacobiCG", "SolveResult", "SparseDirect", "SystemOperator",
-           "WarpedFactor", "choose", "make_solver"]
+           "WarpedFactor", "WorldBlocks", "choose", "make_solver"]

@@ -69,6 +69,8 @@ class PCG:
         self.r, self.z, self.p, self.ap = (wp.zeros(shape, dtype=wp.vec3d, device=m.device) for _ in range(4))
         self.scal = wp.zeros((shape[0], m.num_worlds, slots.NUM_SCALARS), dtype=wp.float64, device=m.device)
         self.info = wp.zeros(2, dtype=wp.int32, device=m.device)
+        if hasattr(preconditioner, "watch"):  # a preconditioner that skips the worlds that converged
+            preconditioner.watch(self.scal)
         self.active = wp.zeros(1, dtype=wp.int32, device=m.device)
         self._graphs = {}
         self.count, self.offset = None, 0  # right-hand sides in use: offset + count[0] (None: all)

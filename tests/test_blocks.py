@@ -1,0 +1,94 @@
+"""The warped preconditioner world by world (``preconditioner="blocks"``): one dense inverse per
+world, shared by worlds equal up to a factor, a converged world skipping its product."""
+
+import numpy as np
+import warp as wp
+from warpsoft.kernels.linear.cg import DONE, NUM_SCALARS
+
+import warpsoft as ws
+from warpsoft.linear import WarpedFactor, WorldBlocks
+
+
+def beam(young_modulus=1e6, poisson_ratio=0.45, cells=20, static=True):
+    """A cantilever under gravity and a tip load; quasi-static by default (its system is then
+    its stiffness alone, proportional to Young's modulus)."""
+    scene = ws.Scene("beam", gravity=(0, 0, -9.81), dt=0.02, static=static)
+    body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (cells, 2, 2)),
+                          ws.Material(young_modulus, poisson_ratio, 1000.0))
+    scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
+    scene.add_force(body, ws.OnPlane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.2))
+    return scene
+
+
+def four_designs():
+    """The same beam at 1 and 3 MPa (proportional systems), at another Poisson ratio, and shorter cells."""
+    return [beam(), beam(3e6), beam(1e6, 0.3), beam(cells=16)]
+
+
+def test_blocks_apply_each_worlds_inverse_on_turned_bodies():
+    """Refreshed at a bent state, the blocks apply the same ``Q A_f^-1 Q^T`` as the whole model's
+    host factor (block diagonal), on every column: to round-off in float64, to float32's precision."""
+    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
+    for _ in range(3):
+        sim.step()
+    r = wp.array(np.random.default_rng(7).standard_normal((3, sim.model.num_nodes, 3)), dtype=wp.vec3d)
+    host = WarpedFactor(sim.operator, 3, "host")
+    host.prepare()  # factorized at the bent state
+    want = wp.zeros_like(r)
+    host.apply(r, want)
+    want = want.numpy()
+    for precision, tol in (("float64", 1e-9), ("float32", 1e-4)):
+        pre = WorldBlocks(sim.operator, 3, precision, share=False)
+        pre.prepare()
+        assert pre.blocks == 4 and pre.refreshes == 1
+        for k in (3, 1):  # also fewer columns than it serves
+            z = wp.zeros((k, sim.model.num_nodes), dtype=wp.vec3d)
+            pre.apply(r[:k], z)
+            assert np.abs(z.numpy() - want[:k]).max() < tol * np.abs(want).max(), (precision, k)
+
+
+def test_proportional_worlds_share_a_block_and_step_as_alone():
+    """At rest the 1 and 3 MPa beams have proportional stiffnesses: one block serves both, the
+    second scaled by 1/3. Each world then steps as it does alone, in its own iteration count."""
+    scenes = four_designs()
+    sim = ws.Simulator(ws.finalize(scenes), solver="pcg", preconditioner="blocks", precision="float64",
+                       tolerance=1e-10)
+    together = [sim.step() for _ in range(3)]
+    pre = sim.solver.precond
+    assert isinstance(pre, WorldBlocks)
+    assert pre.blocks == 3 and list(pre.block_of) == [0, 0, 1, 2]
+    assert abs(pre.scale_np[1] - 3.0) < 1e-9
+    for w, scene in enumerate(scenes):
+        alone = ws.Simulator(scene, solver="pcg", preconditioner="blocks", precision="float64", tolerance=1e-10)
+        history = [alone.step() for _ in range(3)]
+        q = alone.positions()
+        moved = np.abs(q - sim.model.rest_np[sim.model.world_nodes(w)]).max()
+        assert moved > 1e-4
+        assert np.abs(sim.positions(w) - q).max() < 1e-8 * moved
+        assert [s.worlds[w].cg_iterations for s in together] == [s.cg_iterations for s in history]
+
+
+def test_a_converged_world_skips_its_product():
+    """With every column of world 0 marked done, an application leaves world 0's result as the
+    previous one left it and updates the other worlds."""
+    sim = ws.Simulator(ws.finalize(four_designs()[:2] + [beam(cells=16)]), solver="direct")
+    sim.step()
+    pre = WorldBlocks(sim.operator, 2, "float64")
+    scal = wp.zeros((2, 3, NUM_SCALARS), dtype=wp.float64)
+    pre.watch(scal)
+    pre.prepare()
+    rng = np.random.default_rng(1)
+    n = sim.model.num_nodes
+    r1, r2 = (wp.array(rng.standard_normal((2, n, 3)), dtype=wp.vec3d) for _ in range(2))
+    z1, z2, fresh = (wp.zeros((2, n), dtype=wp.vec3d) for _ in range(3))
+    pre.apply(r2, fresh)
+    pre.apply(r1, z1)
+    s = scal.numpy()
+    s[:, 0, DONE] = 1.0
+    scal.assign(s)
+    pre.apply(r2, z2)
+    nodes0 = sim.model.world_nodes(0)
+    assert np.array_equal(z2.numpy()[:, nodes0], z1.numpy()[:, nodes0])
+    rest = slice(nodes0.stop, n)
+    assert np.array_equal(z2.numpy()[:, rest], fresh.numpy()[:, rest])
+    assert not np.allclose(z1.numpy()[:, rest], fresh.numpy()[:, rest])

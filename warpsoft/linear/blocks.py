@@ -1,0 +1,272 @@
+"""The warped preconditioner world by world (``preconditioner="blocks"``): a dense inverse per
+world on the device, for models of many worlds (batches of designs).
+
+The worlds of a model are separate bodies, so ``A`` is block diagonal. :class:`WarpedFactor`'s
+dense mode inverts the whole of it, ``N^2`` numbers for ``N`` free DOFs over all worlds: four
+Diamonds already pass its 12000-DOF limit, and a batch then fell back to host solves (30 times
+slower than the designs one at a time on an H200, docs/performance.md). Here each world keeps
+only its own block, ``sum_w N_w^2`` numbers, and the product of every world runs in one launch
+(``kernels/linear/blocks.py``).
+
+Worlds whose system at the factorized state is the same up to a factor (the same mesh, supports
+and Poisson ratio, quasi-static, only Young's modulus differing: a sweep over a modulus) share
+one block, each with its own scale: ``(s A)^-1 = A^-1 / s``. Sharing is decided at the first
+factorization, by comparing the assembled values. A later refresh (when the iterations grow, as
+in :class:`WarpedFactor`) refactorizes each block at its first world's state and keeps the
+sharing: for the other worlds of a block that is an approximate inverse, which a preconditioner
+may be.
+
+Each block is inverted on the host by LAPACK (a dense Cholesky ``potrf`` and ``potri``): 1.6 s
+for the Diamond's 4227 free DOFs on the 2-core VM. A sweep of many different meshes pays this
+once per mesh, at its first step.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import scipy.linalg as sla
+import warp as wp
+
+from warpsoft.kernels.linear import blocks as kernels
+from warpsoft.kernels.linear import warped as rotations
+from warpsoft.kernels.linear.cg import NUM_SCALARS
+
+from ..errors import SceneError
+from ..launch import launch
+from .operator import SystemOperator
+
+UNROLL, WIDTH = 2, 2  # loads in flight per thread, numbers per load (the whole-model product's best: warped.STREAM)
+THREADS = 1 << 20  # segments are added until the product has about this many threads (enough loads in flight)
+
+
+class WorldBlocks:
+    """``P^-1 = Q blockdiag(s_w A_b(w)^-1) Q^T``: :class:`WarpedFactor`'s preconditioner with one
+    dense inverse per world (or per group of proportional worlds) on the device.
+
+    Args:
+        operator: the system (rotations, scales, model).
+        columns: right-hand sides ``k`` of the solves it serves.
+        precision: "float32" or "float64", of the dense inverses (the CG runs in float64).
+        refresh_ratio, refresh_floor: when to refactorize, as :class:`WarpedFactor`'s.
+        share: let proportional worlds share a block (False: one block per world).
+        share_tolerance: world ``w`` shares block ``b`` when ``max|A_w - s A_b| <= tol max|A_w|`` for
+            some ``s > 0`` (the element blocks and lumped masses compared; the same mesh and supports).
+
+    Attributes: ``blocks`` (distinct inverses), ``block_of`` ``(worlds,)``, ``scale`` ``(worlds,)``,
+    ``refreshes``, ``memory_bytes``.
+    """
+
+    capturable = True
+
+    def __init__(self, operator: SystemOperator, columns: int, precision: str = "float32",
+                 refresh_ratio: float = 2.0, refresh_floor: int = 40, share: bool = True,
+                 share_tolerance: float = 1e-10):
+        if precision not in ("float64", "float32"):
+            raise ValueError(f"WorldBlocks: precision must be 'float64' or 'float32', got {precision!r}")
+        m = operator.model
+        d = m.device
+        self.op, self.columns = operator, int(columns)
+        self.share, self.share_tolerance = bool(share), float(share_tolerance)
+        self.dtype = wp.float64 if precision == "float64" else wp.float32
+        self.refresh_ratio, self.refresh_floor = float(refresh_ratio), int(refresh_floor)
+        self.refreshes, self._baseline, self._stale = 0, None, True
+        n = m.num_nodes
+        self.node_sum = wp.zeros(n, dtype=wp.mat33d, device=d)
+        self.node_rot = wp.zeros(n, dtype=wp.mat33d, device=d)
+        self.frame = wp.array(np.tile(np.eye(3), (n, 1, 1)), dtype=wp.mat33d, device=d)
+        self.q_rot = wp.zeros(n, dtype=wp.mat33d, device=d)
+        # the flat layout: world w's 3 n_w DOFs padded to a multiple of S * UNROLL rows
+        starts = m.world_node_start.astype(np.int64)
+        dofs = 3 * np.diff(starts)
+        segments = 1
+        while segments < 64 and segments * int(dofs.sum()) // WIDTH < THREADS:
+            segments *= 2
+        self.segments = segments
+        quantum = segments * UNROLL * WIDTH // np.gcd(segments * UNROLL, WIDTH)
+        self.size_np = (-(-dofs // quantum) * quantum).astype(np.int64)  # (worlds,) rows of each world
+        first = np.concatenate([[0], np.cumsum(self.size_np)])
+        self.rows = int(first[-1])
+        if self.rows >= 2 ** 31:
+            raise SceneError(f"WorldBlocks: {self.rows} rows over {m.num_worlds} worlds pass the 2^31 a Warp "
+                             "array holds; step fewer worlds at a time")
+        self.first_np = first[:-1]
+        node_row = first[m.node_world_np] + 3 * (np.arange(n) - starts[m.node_world_np])
+        self.node_row = wp.array(node_row.astype(np.int32), dtype=wp.int32, device=d)
+        self.row_world = wp.array(np.repeat(np.arange(m.num_worlds, dtype=np.int32), self.size_np // WIDTH),
+                                  dtype=wp.int32, device=d)
+        self.first_row = wp.array(self.first_np.astype(np.int32), dtype=wp.int32, device=d)
+        self.size = wp.array(self.size_np.astype(np.int32), dtype=wp.int32, device=d)
+        self.u = wp.zeros((self.rows, self.columns), dtype=self.dtype, device=d)
+        self.partials = wp.zeros((segments, self.columns, self.rows), dtype=self.dtype, device=d)
+        # each world's mesh (its elements' local node ids) and free DOFs: worlds of one mesh share
+        # the map from element block entries to their dense matrix's entries
+        self.local_free, self.mesh_of, self._entries = [], [], {}
+        estarts = m.world_elem_start
+        for w in range(m.num_worlds):
+            n0, n1 = int(starts[w]), int(starts[w + 1])
+            local = np.ascontiguousarray(m.tets_np[estarts[w]:estarts[w + 1]] - n0)
+            mask = np.ascontiguousarray(m.mask_np[n0:n1])
+            self.local_free.append(np.flatnonzero(mask.ravel() > 0))
+            key = (n1 - n0, hashlib.sha1(local.tobytes() + mask.tobytes()).hexdigest())
+            if key not in self._entries:
+                self._entries[key] = _dense_entries(local, n1 - n0)
+            self.mesh_of.append(key)
+        self.block_of = self.scale_np = None  # decided at the first factorization
+        self.inverse = self._wide = self.scale = self.block_row = None
+        # the CG scalars of the solver served (:meth:`watch`); until then none reads as converged
+        self._done = wp.zeros((self.columns, m.num_worlds, NUM_SCALARS), dtype=wp.float64, device=d)
+
+    def watch(self, scal: wp.array) -> None:
+        """The CG scalars ``(columns, worlds, slots)`` of the solver it serves: a world whose columns
+        are all done skips its product."""
+        self._done = scal
+
+    @property
+    def memory_bytes(self) -> int:
+        """Device memory of the dense inverses (0 before the first factorization)."""
+        return 0 if self.inverse is None else self.inverse.capacity
+
+    @property
+    def blocks(self) -> int:
+        """Number of distinct dense inverses."""
+        return 0 if self.block_of is None else int(self.block_of.max()) + 1
+
+    @property
+    def stale(self) -> bool:
+        """True when the next :meth:`prepare` refactorizes on the host (not capturable)."""
+        return self._stale
+
+    def prepare(self) -> None:
+        """Per linearization: node rotations from the element rotations; refactorize if due."""
+        m = self.op.model
+        self.node_sum.zero_()
+        launch(rotations.accumulate_node_rotations, m.num_elements, inputs=[m.tets, m.volume, self.op.rot],
+               outputs=[self.node_sum], device=m.device)
+        launch(rotations.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
+               outputs=[self.node_rot, self.q_rot], device=m.device)
+        if self._stale:
+            self.refresh()
+
+    def _values(self, blocks: wp.array, w: int) -> np.ndarray:
+        """World ``w``'s system as numbers that fix it: its element blocks (scaled) and, when the
+        system has mass, its nodes' masses (scaled)."""
+        m, op = self.op.model, self.op
+        e0, e1 = int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])
+        values = op.stiffness_scale * blocks[16 * e0:16 * e1].numpy().ravel()
+        if op.mass_scale != 0.0:
+            values = np.concatenate([values, op.mass_scale * m.mass_np[m.world_nodes(w)]])
+        return values
+
+    def _dense(self, values: np.ndarray, w: int) -> np.ndarray:
+        """World ``w``'s block of ``A`` over its free DOFs, dense ``(f_w, f_w)``, from :meth:`_values`."""
+        n = 3 * (int(self.op.model.world_node_start[w + 1]) - int(self.op.model.world_node_start[w]))
+        entries = self._entries[self.mesh_of[w]]
+        dense = np.bincount(entries, weights=values[:len(entries)], minlength=n * n).reshape(n, n)
+        if len(values) > len(entries):  # lumped masses on the diagonal
+            dense[np.diag_indices(n)] += np.repeat(values[len(entries):], 3)
+        lf = self.local_free[w]
+        return dense[np.ix_(lf, lf)]
+
+    def _group(self, blocks: wp.array) -> None:
+        """Which worlds share a block: the same mesh and supports, proportional values."""
+        m = self.op.model
+        block_of, scale = np.zeros(m.num_worlds, dtype=np.int64), np.ones(m.num_worlds)
+        reps: dict[tuple, list[tuple[int, np.ndarray]]] = {}  # mesh -> [(block, its first world's values)]
+        count = 0
+        for w in range(m.num_worlds):
+            values = self._values(blocks, w)
+            found = None
+            for b, ref in reps.get(self.mesh_of[w], []) if self.share else []:
+                s = float(values @ ref) / float(ref @ ref)
+                if s > 0 and np.abs(values - s * ref).max() <= self.share_tolerance * np.abs(values).max():
+                    found = b, s
+                    break
+            if found is None:
+                reps.setdefault(self.mesh_of[w], []).append((count, values))
+                found, count = (count, 1.0), count + 1
+            block_of[w], scale[w] = found
+        self.block_of, self.scale_np = block_of, scale
+        self.first_world = np.array([int(np.flatnonzero(block_of == b)[0]) for b in range(count)])
+
+    def _allocate(self) -> None:
+        m, d = self.op.model, self.op.model.device
+        sizes = self.size_np[self.first_world]  # (blocks,)
+        block_first = np.concatenate([[0], np.cumsum(sizes)])
+        width = int(sizes.max())
+        need = int(block_first[-1]) * width * (8 if self.dtype == wp.float64 else 4)
+        free_bytes = getattr(d, "free_memory", None) if d.is_cuda else None
+        if free_bytes is not None and need > 0.9 * free_bytes:
+            raise SceneError(f"WorldBlocks: the dense inverses of {len(sizes)} distinct worlds (of {m.num_worlds}) "
+                             f"need {need / 1e9:.1f} GB, {d} has {free_bytes / 1e9:.1f} GB free: step fewer designs "
+                             "at a time, or use preconditioner='host'")
+        self.block_first = block_first
+        self.inverse = wp.zeros((int(block_first[-1]), width), dtype=self.dtype, device=d)
+        self._wide = wp.array(ptr=self.inverse.ptr, dtype=rotations.wide_type(WIDTH, self.dtype),
+                              shape=(int(block_first[-1]), width // WIDTH), device=d)
+        npd = np.float64 if self.dtype == wp.float64 else np.float32
+        self.block_row = wp.array(block_first[self.block_of].astype(np.int32), dtype=wp.int32, device=d)
+        self.scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
+
+    def refresh(self) -> None:
+        """Factorize each block at the current rotations (its first world's state) and take them
+        as the new frame."""
+        m = self.op.model
+        blocks = wp.zeros(16 * m.num_elements, dtype=wp.mat33d, device=m.device)  # made here, freed after
+        self.op.elastic.blocks(self.op.rot, blocks)
+        if self.block_of is None:
+            self._group(blocks)
+            self._allocate()
+        wp.copy(self.frame, self.node_rot)
+        launch(rotations.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
+               outputs=[self.node_rot, self.q_rot], device=m.device)
+        npd = np.float64 if self.dtype == wp.float64 else np.float32
+        for b, w in enumerate(self.first_world):
+            lf = self.local_free[w]
+            dense = np.zeros((self.block_first[b + 1] - self.block_first[b], self.inverse.shape[1]), dtype=npd)
+            dense[np.ix_(lf, lf)] = self._inverse(self._dense(self._values(blocks, w), w), w)
+            self.inverse[int(self.block_first[b]):int(self.block_first[b + 1])].assign(dense)  # in place
+        self.refreshes += 1
+        self._baseline, self._stale = None, False
+
+    def _inverse(self, dense: np.ndarray, w: int) -> np.ndarray:
+        """``dense^-1`` by LAPACK's Cholesky; a clear error naming the world when it is not positive definite."""
+        factor, info = sla.lapack.dpotrf(dense, lower=1, overwrite_a=1)
+        if info == 0:
+            inv, info = sla.lapack.dpotri(factor, lower=1, overwrite_c=1)
+        if info != 0:
+            name = self.op.model.scenes[w].name
+            raise SceneError(f"WorldBlocks: world {w} (scene '{name}'): its system is not positive definite "
+                             f"(LAPACK info {info}); is the body held?")
+        return np.tril(inv) + np.tril(inv, -1).T
+
+    def observe(self, iterations: int) -> None:
+        """Told the iteration count of each solve; marks the factorization stale when it grows."""
+        if self._baseline is None:
+            self._baseline = max(int(iterations), 1)
+        elif iterations > max(self.refresh_ratio * self._baseline, self.refresh_floor):
+            self._stale = True
+
+    def apply(self, r: wp.array, z: wp.array) -> None:
+        """``z = Q blockdiag(s_w A_b^-1) Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns``; fixed DOFs 0."""
+        m, d = self.op.model, self.op.model.device
+        k = r.shape[0]
+        rotate_in, product, rotate_out = kernels.block_kernels(k, self.dtype, self.segments, UNROLL, WIDTH)
+        launch(rotate_in, r.shape, inputs=[r, self.q_rot, m.mask, self.node_row], outputs=[self.u], device=d)
+        launch(product, (self.segments, self.rows // WIDTH),
+               inputs=[self._wide, self.u, self.row_world, self.first_row, self.block_row, self.size, self.scale,
+                       self._done], outputs=[self.partials], device=d)
+        launch(rotate_out, r.shape, inputs=[self.partials, self.q_rot, m.mask, self.node_row], outputs=[z], device=d)
+
+
+def _dense_entries(tets: np.ndarray, nodes: int) -> np.ndarray:
+    """For the element blocks of a mesh (``(16 m,)`` 3x3 blocks, block ``4 a + b`` of element ``e``
+    coupling its nodes ``a`` and ``b``), the flat index ``3 n`` by ``3 n`` of each number in the
+    dense matrix: ``(144 m,)``, in the blocks' order."""
+    a = np.arange(4)
+    t = tets.astype(np.int64)
+    rows = 3 * t[:, a][:, :, None, None, None] + np.arange(3)[None, None, None, :, None]
+    cols = 3 * t[:, a][:, None, :, None, None] + np.arange(3)[None, None, None, None, :]
+    rows, cols = np.broadcast_arrays(rows, cols)
+    return (rows * (3 * nodes) + cols).ravel()
