@@ -68,27 +68,38 @@ def test_proportional_worlds_share_a_block_and_step_as_alone():
         assert [s.worlds[w].cg_iterations for s in together] == [s.cg_iterations for s in history]
 
 
-def test_a_converged_world_skips_its_product():
-    """With every column of world 0 marked done, an application leaves world 0's result as the
-    previous one left it and updates the other worlds."""
-    sim = ws.Simulator(ws.finalize(four_designs()[:2] + [beam(cells=16)]), solver="direct")
-    sim.step()
+def test_a_shared_block_serves_its_worlds_and_converged_ones_skip_it():
+    """At rest the 1 and 3 MPa beams share a block: one thread serves both (a chunk), and the
+    product equals the whole model's host factor. A chunk skips its product only when all its
+    worlds are done: with world 0 done it still runs (world 1 is not); with worlds 0 and 1 done
+    their results stay as the previous application left them, and world 2 is updated."""
+    sim = ws.Simulator(ws.finalize([beam(), beam(3e6), beam(cells=16)]), solver="direct")
+    sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
     pre = WorldBlocks(sim.operator, 2, "float64")
     scal = wp.zeros((2, 3, NUM_SCALARS), dtype=wp.float64)
     pre.watch(scal)
     pre.prepare()
+    assert list(pre.block_of) == [0, 0, 1] and 2 in pre.chunks
+    host = WarpedFactor(sim.operator, 2, "host")
+    host.prepare()
     rng = np.random.default_rng(1)
     n = sim.model.num_nodes
     r1, r2 = (wp.array(rng.standard_normal((2, n, 3)), dtype=wp.vec3d) for _ in range(2))
-    z1, z2, fresh = (wp.zeros((2, n), dtype=wp.vec3d) for _ in range(3))
+    z1, fresh, want = (wp.zeros((2, n), dtype=wp.vec3d) for _ in range(3))
     pre.apply(r2, fresh)
+    host.apply(r2, want)
+    assert np.abs(fresh.numpy() - want.numpy()).max() < 1e-9 * np.abs(want.numpy()).max()
     pre.apply(r1, z1)
-    s = scal.numpy()
-    s[:, 0, DONE] = 1.0
-    scal.assign(s)
-    pre.apply(r2, z2)
-    nodes0 = sim.model.world_nodes(0)
-    assert np.array_equal(z2.numpy()[:, nodes0], z1.numpy()[:, nodes0])
-    rest = slice(nodes0.stop, n)
-    assert np.array_equal(z2.numpy()[:, rest], fresh.numpy()[:, rest])
-    assert not np.allclose(z1.numpy()[:, rest], fresh.numpy()[:, rest])
+    first, second = sim.model.world_nodes(0), sim.model.world_nodes(1)
+    for done, stale in (([0], slice(0, 0)), ([0, 1], slice(first.start, second.stop))):
+        s = np.zeros((2, 3, NUM_SCALARS))
+        s[:, done, DONE] = 1.0
+        scal.assign(s)
+        z = wp.zeros((2, n), dtype=wp.vec3d)
+        pre.apply(r2, z)
+        pre.apply(r1, wp.zeros_like(z))  # the partials left behind hold r1's product again
+        got = z.numpy()
+        assert np.array_equal(got[:, stale], z1.numpy()[:, stale])
+        fresh_part = np.ones(n, dtype=bool)
+        fresh_part[stale] = False
+        assert np.array_equal(got[:, fresh_part], fresh.numpy()[:, fresh_part])

@@ -20,6 +20,7 @@ from datetime import date
 from pathlib import Path
 
 import numpy as np
+import warp as wp
 
 import warpsoft as ws
 from warpsoft.io.runner import build_scene
@@ -51,9 +52,27 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -
         times.append(time.perf_counter() - t0)
         its.append(stats.cg_iterations)
     pre = getattr(sim.solver, "precond", None)
-    info = {"cg_iterations": float(np.median(its)), "setup_s": setup, "preconditioner": type(pre).__name__,
+    parts = {}
+    if pre is not None and getattr(pre, "capturable", False):  # a CG iteration's two big products, alone
+        solver = sim.solver
+        solver.scal.zero_()  # no world done: the product runs for all of them
+        parts = {"precond_ms": 1e3 * _median_call(lambda: pre.apply(solver.r, solver.z), sim.model.device),
+                 "operator_ms": 1e3 * _median_call(lambda: sim.operator.apply(solver.p, solver.ap), sim.model.device)}
+    info = {**parts, "cg_iterations": float(np.median(its)), "setup_s": setup, "preconditioner": type(pre).__name__,
             "blocks": getattr(pre, "blocks", None), "precond_mb": getattr(pre, "memory_bytes", 0) / 1e6}
     return float(np.median(times)), sim.model.num_dofs, info
+
+
+def _median_call(call, device, repeats: int = 20) -> float:
+    """Median wall time (s) of ``call`` run to completion on ``device``."""
+    times = []
+    for _ in range(repeats):
+        wp.synchronize_device(device)
+        t0 = time.perf_counter()
+        call()
+        wp.synchronize_device(device)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
 
 
 def main(argv=None) -> int:
@@ -82,7 +101,8 @@ def main(argv=None) -> int:
                      "wall_s": time.perf_counter() - t0, **info})
         print(f"batch {n:5d}: {dofs:8d} DOFs  step {1e3 * median:8.2f} ms  {n / median:9.1f} design-steps/s  "
               f"CG {info['cg_iterations']:.0f}  {info['preconditioner']} blocks {info['blocks']} "
-              f"{info['precond_mb']:.0f} MB  setup {info['setup_s']:.1f} s", flush=True)
+              f"{info['precond_mb']:.0f} MB  setup {info['setup_s']:.1f} s  "
+              f"P^-1 {info.get('precond_ms', 0):.2f} ms  A {info.get('operator_ms', 0):.2f} ms", flush=True)
     alone = None
     if args.alone:
         k = args.alone

@@ -9,11 +9,13 @@ rows stay 0). The blocks are the rows of one ``(sum of block sizes, largest / W)
 ``vector(W)``: block ``b`` starts at row ``block_row``.
 
 The product streams each block down its columns, as the whole-model product does
-(``warped.py``): the thread of (segment ``s``, wide row ``g``) sums ``A_b[j, i..i+W-1] U[j, :]``
-over the ``size / S`` rows ``j`` of its segment, and its world's scale multiplies the sum. A
-world whose columns have all converged (``scal[c, w, DONE]``) skips its product: its ``z`` is no
-longer used (its step length is 0), so a converged world stops costing the dense product's
-bandwidth.
+(``warped.py``): a thread sums ``A_b[j, i..i+W-1] U_w[j, :]`` over the ``size / S`` rows ``j`` of
+its segment, and the world's scale multiplies the sum. A block shared by several worlds is read
+once for up to ``G`` of them: the thread keeps ``G`` worlds' sums (the block's bytes, which bound
+the product, are divided by ``G``; the operands of the ``G`` worlds are the same for the whole
+warp). A chunk of worlds whose columns have all converged (``scal[c, w, DONE]``) skips its
+product: their ``z`` is no longer used (their step length is 0), so converged worlds stop
+costing the dense product's bandwidth.
 """
 
 import warp as wp
@@ -24,24 +26,29 @@ from .warped import wide_type
 _kernels = {}
 
 
-def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int):
+def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, group: int = 1):
     """``(rotate_in, partial_product, rotate_out)`` for ``k = columns`` right-hand sides, inverse
     precision ``dtype``, ``S = segments`` segments of each world's rows, ``unroll`` loads in flight
-    per thread and ``W = width`` numbers per load (compile-time constants, hence cached per key).
+    per thread, ``W = width`` numbers per load, and up to ``G = group`` worlds of one block served by
+    each thread (compile-time constants, hence cached per key).
 
     - ``rotate_in(r, q_rot, mask, node_row, U)`` over ``(k, n)``: ``U[node_row[i] + a, c] = (mask_i Q_i^T r[c, i])_a``;
-    - ``partial_product(A, U, row_world, first_row, block_row, size, scale, scal, P)`` over
-      ``(S, N / W)``: ``P[s, c, rows] = scale[w] sum_j A[block_row[w] + j, cols] U[first_row[w] + j, c]``
-      over the segment ``s`` of world ``w``'s ``size[w]`` rows;
+    - ``partial_product(A, U, row_chunk, chunk_first, chunk_worlds, first_row, block_row, size, scale, scal, P)``
+      over ``(S, T)``: the worlds are dealt into chunks of at most ``G`` worlds sharing a block
+      (``chunk_worlds`` ``(chunks, G)``, -1 where a chunk has fewer); thread ``t`` serves the ``W``
+      columns ``t - chunk_first[ch]`` of chunk ``ch = row_chunk[t]``'s block for each of its worlds:
+      ``P[s, c, first_row[w] + cols] = scale[w] sum_j A[block_row[w] + j, cols] U[first_row[w] + j, c]``
+      over the segment ``s`` of the block's ``size`` rows. One load of the block serves ``G`` worlds;
     - ``rotate_out(P, q_rot, mask, node_row, z)`` over ``(k, n)``:
       ``z[c, i] = mask_i Q_i sum_s P[s, c, node_row[i] + a]``.
     """
-    key = (columns, dtype, segments, unroll, width)
+    key = (columns, dtype, segments, unroll, width, group)
     if key in _kernels:
         return _kernels[key]
-    K, S, UN, W = columns, segments, unroll, width
+    K, S, UN, W, G = columns, segments, unroll, width, group
     wide = wide_type(W, dtype)
-    sums = wp.types.matrix(shape=(W, K), dtype=dtype)
+    sums = wp.types.matrix(shape=(G * W, K), dtype=dtype)
+    rows = wp.types.vector(length=G, dtype=wp.int32)
 
     @wp.kernel(module="unique")
     def blocks_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
@@ -56,37 +63,48 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int):
 
     @wp.kernel(module="unique")
     def blocks_partial_product(A: wp.array2d(dtype=wide), U: wp.array2d(dtype=dtype),
-                               row_world: wp.array(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
+                               row_chunk: wp.array(dtype=wp.int32), chunk_first: wp.array(dtype=wp.int32),
+                               chunk_worlds: wp.array2d(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
                                block_row: wp.array(dtype=wp.int32), size: wp.array(dtype=wp.int32),
                                scale: wp.array(dtype=dtype), scal: wp.array3d(dtype=wp.float64),
                                P: wp.array3d(dtype=dtype)):
-        s, g = wp.tid()
-        w = row_world[g]
+        s, t = wp.tid()
+        ch = row_chunk[t]
+        w0 = chunk_worlds[ch, 0]
+        u0 = rows()
         running = wp.int32(0)
-        for c in range(K):
-            if scal[c, w, DONE] == wp.float64(0.0):
-                running = 1
+        for g in range(G):
+            w = chunk_worlds[ch, g]
+            u0[g] = first_row[w0]  # a missing world reads the first one's operand (never written out)
+            if w >= 0:
+                u0[g] = first_row[w]
+                for c in range(K):
+                    if scal[c, w, DONE] == wp.float64(0.0):
+                        running = 1
         if running == 0:
-            return  # every column of this world converged
-        u0 = first_row[w]
-        i = g - u0 // W  # this thread's W columns of the world's block
-        segment = size[w] // S
-        a0 = block_row[w]
+            return  # every column of every world of this chunk converged
+        i = t - chunk_first[ch]  # this thread's W columns of the block
+        segment = size[w0] // S
+        a0 = block_row[w0]
         acc = sums()
         j = s * segment
         end = j + segment
         while j < end:
             for u in range(UN):  # unrolled: UN independent loads of A in flight per thread
                 a = A[a0 + j + u, i]
-                for c in range(K):
-                    uc = U[u0 + j + u, c]
-                    for v in range(W):
-                        acc[v, c] = acc[v, c] + a[v] * uc
+                for g in range(G):
+                    for c in range(K):
+                        uc = U[u0[g] + j + u, c]
+                        for v in range(W):
+                            acc[g * W + v, c] = acc[g * W + v, c] + a[v] * uc
             j += UN
-        f = scale[w]
-        for c in range(K):
-            for v in range(W):
-                P[s, c, W * g + v] = f * acc[v, c]
+        for g in range(G):
+            w = chunk_worlds[ch, g]
+            if w >= 0:
+                f = scale[w]
+                for c in range(K):
+                    for v in range(W):
+                        P[s, c, u0[g] + W * i + v] = f * acc[g * W + v, c]
 
     @wp.kernel(module="unique")
     def blocks_rotate_out(P: wp.array3d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),

@@ -39,6 +39,8 @@ from .operator import SystemOperator
 
 UNROLL, WIDTH = 2, 2  # loads in flight per thread, numbers per load (the whole-model product's best: warped.STREAM)
 THREADS = 1 << 20  # segments are added until the product has about this many threads (enough loads in flight)
+GROUPS = (1, 2, 4, 8)  # worlds of one block a thread of the product may serve
+SUMS = 48  # a thread's sums at most (G worlds x W numbers x k columns): past this they spill from registers
 
 
 class WorldBlocks:
@@ -94,8 +96,6 @@ class WorldBlocks:
         self.first_np = first[:-1]
         node_row = first[m.node_world_np] + 3 * (np.arange(n) - starts[m.node_world_np])
         self.node_row = wp.array(node_row.astype(np.int32), dtype=wp.int32, device=d)
-        self.row_world = wp.array(np.repeat(np.arange(m.num_worlds, dtype=np.int32), self.size_np // WIDTH),
-                                  dtype=wp.int32, device=d)
         self.first_row = wp.array(self.first_np.astype(np.int32), dtype=wp.int32, device=d)
         self.size = wp.array(self.size_np.astype(np.int32), dtype=wp.int32, device=d)
         self.u = wp.zeros((self.rows, self.columns), dtype=self.dtype, device=d)
@@ -179,7 +179,7 @@ class WorldBlocks:
             values = self._values(blocks, w)
             found = None
             for b, ref in reps.get(self.mesh_of[w], []) if self.share else []:
-                s = float(values @ ref) / float(ref @ ref)
+                s = float(values @ ref) / max(float(ref @ ref), np.finfo(float).tiny)
                 if s > 0 and np.abs(values - s * ref).max() <= self.share_tolerance * np.abs(values).max():
                     found = b, s
                     break
@@ -208,6 +208,20 @@ class WorldBlocks:
         npd = np.float64 if self.dtype == wp.float64 else np.float32
         self.block_row = wp.array(block_first[self.block_of].astype(np.int32), dtype=wp.int32, device=d)
         self.scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
+        # the worlds dealt into chunks of at most G of one block, for each G the product may take
+        most = int(np.bincount(self.block_of).max())
+        self.chunks = {}
+        for g in (g for g in GROUPS if g == 1 or g // 2 < most):
+            lists = [np.flatnonzero(self.block_of == b) for b in range(len(sizes))]
+            table = [np.pad(ws[i:i + g], (0, g - len(ws[i:i + g])), constant_values=-1)
+                     for ws in lists for i in range(0, len(ws), g)]
+            table = np.array(table, dtype=np.int32).reshape(-1, g)
+            threads = self.size_np[table[:, 0]] // WIDTH  # each chunk's threads per segment
+            first = np.concatenate([[0], np.cumsum(threads)])
+            self.chunks[g] = (wp.array(np.repeat(np.arange(len(table), dtype=np.int32), threads), dtype=wp.int32,
+                                       device=d),
+                              wp.array(first[:-1].astype(np.int32), dtype=wp.int32, device=d),
+                              wp.array(table, dtype=wp.int32, device=d), int(first[-1]))
 
     def refresh(self) -> None:
         """Factorize each block at the current rotations (its first world's state) and take them
@@ -252,11 +266,13 @@ class WorldBlocks:
         """``z = Q blockdiag(s_w A_b^-1) Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns``; fixed DOFs 0."""
         m, d = self.op.model, self.op.model.device
         k = r.shape[0]
-        rotate_in, product, rotate_out = kernels.block_kernels(k, self.dtype, self.segments, UNROLL, WIDTH)
+        group = max(g for g in self.chunks if g == 1 or g * WIDTH * k <= SUMS)
+        row_chunk, chunk_first, chunk_worlds, threads = self.chunks[group]
+        rotate_in, product, rotate_out = kernels.block_kernels(k, self.dtype, self.segments, UNROLL, WIDTH, group)
         launch(rotate_in, r.shape, inputs=[r, self.q_rot, m.mask, self.node_row], outputs=[self.u], device=d)
-        launch(product, (self.segments, self.rows // WIDTH),
-               inputs=[self._wide, self.u, self.row_world, self.first_row, self.block_row, self.size, self.scale,
-                       self._done], outputs=[self.partials], device=d)
+        launch(product, (self.segments, threads),
+               inputs=[self._wide, self.u, row_chunk, chunk_first, chunk_worlds, self.first_row, self.block_row,
+                       self.size, self.scale, self._done], outputs=[self.partials], device=d)
         launch(rotate_out, r.shape, inputs=[self.partials, self.q_rot, m.mask, self.node_row], outputs=[z], device=d)
 
 
