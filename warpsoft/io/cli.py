@@ -61,6 +61,10 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("--batch", type=int, default=256, help="designs stepped together as one model (default: 256)")
     sw.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:0 (default: Warp's default)")
     sw.add_argument("--solver", choices=["auto", "pcg", "direct", "jacobi"], default="auto")
+    sw.add_argument("--share-tolerance", type=float, default=1e-10,
+                    help="pcg on CUDA: designs of one mesh share a preconditioner block when their systems are "
+                         "multiples to within this (default 1e-10: exact multiples; 0.01 also shares dynamic "
+                         "designs of one mesh, for less setup and memory)")
     sw.add_argument("--workers", type=int, default=None,
                     help="processes meshing the designs first (default: the CPU count; 1: in this process)")
     sw.add_argument("--plot", default=None, metavar="METRIC",
@@ -88,7 +92,7 @@ def sweep_command(args) -> int:
     swept = list(designs[0])
     results = sweep(args.scene, designs, steps=args.steps, batch=args.batch, device=args.device,
                     fixed=parse_params(args.param), workers=args.workers, out=args.out, progress=True,
-                    solver=args.solver)
+                    solver=args.solver, share_tolerance=args.share_tolerance)
     out = Path(args.out)
     print(f"warpsoft sweep: {sum(r.status == 'completed' for r in results)} of {len(results)} designs completed; "
           f"table: {out / 'results.csv'}")
