@@ -2,6 +2,7 @@
 world, shared by worlds equal up to a factor, a converged world skipping its product."""
 
 import numpy as np
+import pytest
 import warp as wp
 from warpsoft.kernels.linear.cg import DONE, NUM_SCALARS
 
@@ -103,3 +104,24 @@ def test_a_shared_block_serves_its_worlds_and_converged_ones_skip_it():
         fresh_part = np.ones(n, dtype=bool)
         fresh_part[stale] = False
         assert np.array_equal(got[:, fresh_part], fresh.numpy()[:, fresh_part])
+
+
+def test_a_share_tolerance_shares_dynamic_designs_and_keeps_the_answer():
+    """Dynamic beams at 1 and 3 MPa are not exact multiples (their mass is the same): by default
+    each has its block; with ``share_tolerance=0.01`` one block serves both, the second world's
+    preconditioner is then approximate, and its step still reaches the same positions to the CG
+    tolerance. A tolerance outside [0, 1) is refused by name."""
+    scenes = [beam(static=False), beam(3e6, static=False)]
+    runs = {}
+    for tol in (1e-10, 0.01):
+        sim = ws.Simulator(ws.finalize(scenes), solver="pcg", preconditioner="blocks", precision="float64",
+                           tolerance=1e-10, share_tolerance=tol)
+        for _ in range(3):
+            sim.step()
+        runs[tol] = (sim.solver.precond.blocks, sim.positions(1))
+    assert runs[1e-10][0] == 2 and runs[0.01][0] == 1
+    moved = np.abs(runs[1e-10][1] - ws.Simulator(scenes[1]).model.rest_np).max()
+    assert moved > 1e-5
+    assert np.abs(runs[0.01][1] - runs[1e-10][1]).max() < 1e-7 * moved
+    with pytest.raises(ws.SceneError, match="share_tolerance"):
+        ws.Simulator(scenes[0], share_tolerance=1.5)
