@@ -36,6 +36,7 @@ from warpsoft.kernels.linear.cg import NUM_SCALARS
 from ..errors import SceneError
 from ..launch import launch
 from .operator import SystemOperator
+from .warped import WarpedFrames
 
 UNROLL, WIDTH = 2, 2  # loads in flight per thread, numbers per load (the whole-model product's best: warped.STREAM)
 THREADS = 1 << 20  # segments are added until the product has about this many threads (enough loads in flight)
@@ -43,7 +44,7 @@ GROUPS = (1, 2, 4, 8)  # worlds of one block a thread of the product may serve
 SUMS = 48  # a thread's sums at most (G worlds x W numbers x k columns): past this they spill from registers
 
 
-class WorldBlocks:
+class WorldBlocks(WarpedFrames):
     """``P^-1 = Q blockdiag(s_w A_b(w)^-1) Q^T``: :class:`WarpedFactor`'s preconditioner with one
     dense inverse per world (or per group of proportional worlds) on the device.
 
@@ -69,16 +70,11 @@ class WorldBlocks:
             raise ValueError(f"WorldBlocks: precision must be 'float64' or 'float32', got {precision!r}")
         m = operator.model
         d = m.device
-        self.op, self.columns = operator, int(columns)
+        super().__init__(operator, refresh_ratio, refresh_floor)
+        self.columns = int(columns)
         self.share, self.share_tolerance = bool(share), float(share_tolerance)
         self.dtype = wp.float64 if precision == "float64" else wp.float32
-        self.refresh_ratio, self.refresh_floor = float(refresh_ratio), int(refresh_floor)
-        self.refreshes, self._baseline, self._stale = 0, None, True
         n = m.num_nodes
-        self.node_sum = wp.zeros(n, dtype=wp.mat33d, device=d)
-        self.node_rot = wp.zeros(n, dtype=wp.mat33d, device=d)
-        self.frame = wp.array(np.tile(np.eye(3), (n, 1, 1)), dtype=wp.mat33d, device=d)
-        self.q_rot = wp.zeros(n, dtype=wp.mat33d, device=d)
         # the flat layout: world w's 3 n_w DOFs padded to a multiple of S * UNROLL rows
         starts = m.world_node_start.astype(np.int64)
         dofs = 3 * np.diff(starts)
@@ -132,22 +128,6 @@ class WorldBlocks:
     def blocks(self) -> int:
         """Number of distinct dense inverses."""
         return 0 if self.block_of is None else int(self.block_of.max()) + 1
-
-    @property
-    def stale(self) -> bool:
-        """True when the next :meth:`prepare` refactorizes on the host (not capturable)."""
-        return self._stale
-
-    def prepare(self) -> None:
-        """Per linearization: node rotations from the element rotations; refactorize if due."""
-        m = self.op.model
-        self.node_sum.zero_()
-        launch(rotations.accumulate_node_rotations, m.num_elements, inputs=[m.tets, m.volume, self.op.rot],
-               outputs=[self.node_sum], device=m.device)
-        launch(rotations.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
-               outputs=[self.node_rot, self.q_rot], device=m.device)
-        if self._stale:
-            self.refresh()
 
     def _values(self, blocks: wp.array, w: int) -> np.ndarray:
         """World ``w``'s system as numbers that fix it: its element blocks (scaled) and, when the
@@ -232,17 +212,13 @@ class WorldBlocks:
         if self.block_of is None:
             self._group(blocks)
             self._allocate()
-        wp.copy(self.frame, self.node_rot)
-        launch(rotations.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
-               outputs=[self.node_rot, self.q_rot], device=m.device)
         npd = np.float64 if self.dtype == wp.float64 else np.float32
         for b, w in enumerate(self.first_world):
             lf = self.local_free[w]
             dense = np.zeros((self.block_first[b + 1] - self.block_first[b], self.inverse.shape[1]), dtype=npd)
             dense[np.ix_(lf, lf)] = self._inverse(self._dense(self._values(blocks, w), w), w)
             self.inverse[int(self.block_first[b]):int(self.block_first[b + 1])].assign(dense)  # in place
-        self.refreshes += 1
-        self._baseline, self._stale = None, False
+        self.take_frame()
 
     def _inverse(self, dense: np.ndarray, w: int) -> np.ndarray:
         """``dense^-1`` by LAPACK's Cholesky; a clear error naming the world when it is not positive definite."""
@@ -254,13 +230,6 @@ class WorldBlocks:
             raise SceneError(f"WorldBlocks: world {w} (scene '{name}'): its system is not positive definite "
                              f"(LAPACK info {info}); is the body held?")
         return np.tril(inv) + np.tril(inv, -1).T
-
-    def observe(self, iterations: int) -> None:
-        """Told the iteration count of each solve; marks the factorization stale when it grows."""
-        if self._baseline is None:
-            self._baseline = max(int(iterations), 1)
-        elif iterations > max(self.refresh_ratio * self._baseline, self.refresh_floor):
-            self._stale = True
 
     def apply(self, r: wp.array, z: wp.array) -> None:
         """``z = Q blockdiag(s_w A_b^-1) Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns``; fixed DOFs 0."""

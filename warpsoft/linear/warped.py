@@ -48,7 +48,66 @@ STREAM = (64, 2, 2)
 STREAM_COLUMNS = 32
 
 
-class WarpedFactor:
+class WarpedFrames:
+    """What every warped preconditioner shares: the node rotations ``Q_i = R_i R_f,i^T`` between
+    the factorized frame and the current one, and when to refactorize (a solve needing more than
+    ``refresh_ratio`` times the iterations of the first solve after the last refresh, and more
+    than ``refresh_floor``). A subclass gives :meth:`refresh`, which factorizes and then calls
+    :meth:`take_frame`.
+
+    Arrays ``(nodes,)`` mat33d: ``node_sum`` (volume-weighted element rotations), ``node_rot``
+    (``R_i``), ``frame`` (``R_f,i``), ``q_rot`` (``Q_i``).
+    """
+
+    def __init__(self, operator: SystemOperator, refresh_ratio: float, refresh_floor: int):
+        m = operator.model
+        self.op = operator
+        self.refresh_ratio, self.refresh_floor = float(refresh_ratio), int(refresh_floor)
+        self.refreshes, self._baseline, self._stale = 0, None, True
+        n = m.num_nodes
+        self.node_sum = wp.zeros(n, dtype=wp.mat33d, device=m.device)
+        self.node_rot = wp.zeros(n, dtype=wp.mat33d, device=m.device)
+        self.frame = wp.array(np.tile(np.eye(3), (n, 1, 1)), dtype=wp.mat33d, device=m.device)
+        self.q_rot = wp.zeros(n, dtype=wp.mat33d, device=m.device)
+
+    @property
+    def stale(self) -> bool:
+        """True when the next :meth:`prepare` refactorizes on the host (not capturable)."""
+        return self._stale
+
+    def prepare(self) -> None:
+        """Per linearization: node rotations from the element rotations; refactorize if due."""
+        m = self.op.model
+        self.node_sum.zero_()
+        launch(kernels.accumulate_node_rotations, m.num_elements, inputs=[m.tets, m.volume, self.op.rot],
+               outputs=[self.node_sum], device=m.device)
+        launch(kernels.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
+               outputs=[self.node_rot, self.q_rot], device=m.device)
+        if self._stale:
+            self.refresh()
+
+    def refresh(self) -> None:
+        """Factorize at the current state, then :meth:`take_frame` (each preconditioner its own way)."""
+        raise NotImplementedError
+
+    def take_frame(self) -> None:
+        """After a factorization at the current rotations: they become the frame (``Q = I``)."""
+        m = self.op.model
+        wp.copy(self.frame, self.node_rot)
+        launch(kernels.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
+               outputs=[self.node_rot, self.q_rot], device=m.device)
+        self.refreshes += 1
+        self._baseline, self._stale = None, False
+
+    def observe(self, iterations: int) -> None:
+        """Told the iteration count of each solve; marks the factorization stale when it grows."""
+        if self._baseline is None:
+            self._baseline = max(int(iterations), 1)
+        elif iterations > max(self.refresh_ratio * self._baseline, self.refresh_floor):
+            self._stale = True
+
+
+class WarpedFactor(WarpedFrames):
     """Args:
         operator: the system (rotations, scales, model).
         columns: number of right-hand sides ``k`` of the solves it serves.
@@ -75,19 +134,14 @@ class WarpedFactor:
             raise ValueError(f"WarpedFactor: product must be one of {PRODUCTS}, got {product!r}")
         m = operator.model
         d = m.device
-        self.op, self.columns = operator, int(columns)
+        super().__init__(operator, refresh_ratio, refresh_floor)
+        self.columns = int(columns)
         self.assembly = Assembly(operator)
         self.factor = CholmodFactor(self.assembly)
         if mode == "auto":
             mode = "dense" if d.is_cuda and self.assembly.size <= DENSE_LIMIT else "host"
         self.mode, self.capturable = mode, mode == "dense"
-        self.refresh_ratio, self.refresh_floor = float(refresh_ratio), int(refresh_floor)
-        self.refreshes, self._baseline, self._stale = 0, None, True
         n = m.num_nodes
-        self.node_sum = wp.zeros(n, dtype=wp.mat33d, device=d)
-        self.node_rot = wp.zeros(n, dtype=wp.mat33d, device=d)
-        self.frame = wp.array(np.tile(np.eye(3), (n, 1, 1)), dtype=wp.mat33d, device=d)
-        self.q_rot = wp.zeros(n, dtype=wp.mat33d, device=d)
         if self.mode == "host":
             self.u = wp.zeros((self.columns, n), dtype=wp.vec3d, device=d)
             self.y = wp.zeros((self.columns, n), dtype=wp.vec3d, device=d)
@@ -123,29 +177,11 @@ class WarpedFactor:
         """Device memory of the dense inverse (0 in host mode)."""
         return 0 if self.mode == "host" else self.padded ** 2 * (8 if self.dtype == wp.float64 else 4)
 
-    @property
-    def stale(self) -> bool:
-        """True when the next :meth:`prepare` refactorizes on the host (not capturable)."""
-        return self._stale
-
-    def prepare(self) -> None:
-        """Per linearization: node rotations from the element rotations; refactorize if due."""
-        m = self.op.model
-        self.node_sum.zero_()
-        launch(kernels.accumulate_node_rotations, m.num_elements, inputs=[m.tets, m.volume, self.op.rot],
-               outputs=[self.node_sum], device=m.device)
-        launch(kernels.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
-               outputs=[self.node_rot, self.q_rot], device=m.device)
-        if self._stale:
-            self.refresh()
-
     def refresh(self) -> None:
         """Factorize ``A`` at the current rotations and take them as the new frame."""
         m = self.op.model
         self.factor.factorize(self.assembly.values())
-        wp.copy(self.frame, self.node_rot)
-        launch(kernels.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
-               outputs=[self.node_rot, self.q_rot], device=m.device)
+        self.take_frame()
         if self.mode == "dense":
             free = self.assembly.free
             dense = np.zeros((self.padded, self.padded))
@@ -159,15 +195,6 @@ class WarpedFactor:
                                                   shape=(self.padded, self.padded // w), device=m.device)
             else:  # in place: a captured solve graph holds this buffer's address
                 self.inverse.assign(dense.astype(np.float64 if self.dtype == wp.float64 else np.float32))
-        self.refreshes += 1
-        self._baseline, self._stale = None, False
-
-    def observe(self, iterations: int) -> None:
-        """Told the iteration count of each solve; marks the factorization stale when it grows."""
-        if self._baseline is None:
-            self._baseline = max(int(iterations), 1)
-        elif iterations > max(self.refresh_ratio * self._baseline, self.refresh_floor):
-            self._stale = True
 
     def apply(self, r: wp.array, z: wp.array) -> None:
         """``z = Q A_f^-1 Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns`` (the first ``k`` of
