@@ -110,7 +110,7 @@ def test_a_share_tolerance_shares_dynamic_designs_and_keeps_the_answer():
     """Dynamic beams at 1 and 3 MPa are not exact multiples (their mass is the same): by default
     each has its block; with ``share_tolerance=0.01`` one block serves both, the second world's
     preconditioner is then approximate, and its step still reaches the same positions to the CG
-    tolerance. A tolerance outside [0, 1) is refused by name."""
+    tolerance. A tolerance outside [0, 1), or an unknown preconditioner, is refused by name."""
     scenes = [beam(static=False), beam(3e6, static=False)]
     runs = {}
     for tol in (1e-10, 0.01):
@@ -125,3 +125,5 @@ def test_a_share_tolerance_shares_dynamic_designs_and_keeps_the_answer():
     assert np.abs(runs[0.01][1] - runs[1e-10][1]).max() < 1e-7 * moved
     with pytest.raises(ws.SceneError, match="share_tolerance"):
         ws.Simulator(scenes[0], share_tolerance=1.5)
+    with pytest.raises(ValueError, match="auto, host, dense, blocks, got 'block'"):
+        ws.Simulator(scenes[0], solver="pcg", preconditioner="block")

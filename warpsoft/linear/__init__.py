@@ -22,6 +22,7 @@ from .pcg import PCG, SolveResult
 from .warped import WarpedFactor
 
 SOLVERS = ("auto", "pcg", "direct", "jacobi")
+PRECONDITIONERS = ("auto", "host", "dense", "blocks")  # pcg's
 
 
 def choose(name: str, device) -> str:
@@ -54,6 +55,8 @@ def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: fl
         return BlockJacobiCG(operator, BlockJacobi(operator), columns, tolerance, max_iterations, int(check_every),
                              graphs)
     model = operator.model
+    if preconditioner not in PRECONDITIONERS:
+        raise ValueError(f"preconditioner must be one of {', '.join(PRECONDITIONERS)}, got {preconditioner!r}")
     if preconditioner == "blocks" or (preconditioner == "auto" and model.device.is_cuda and model.num_worlds > 1):
         warp_pre = WorldBlocks(operator, columns, precision, share_tolerance=share_tolerance)
     else:
