@@ -75,7 +75,7 @@ class WorldBlocks(WarpedFrames):
         self.share, self.share_tolerance = bool(share), float(share_tolerance)
         self.dtype = wp.float64 if precision == "float64" else wp.float32
         n = m.num_nodes
-        # the flat layout: world w's 3 n_w DOFs padded to a multiple of S * UNROLL rows
+        # the flat layout: world w's 3 n_w DOFs padded to a multiple of S * UNROLL rows (and of WIDTH)
         starts = m.world_node_start.astype(np.int64)
         dofs = 3 * np.diff(starts)
         segments = 1
@@ -89,10 +89,9 @@ class WorldBlocks(WarpedFrames):
         if self.rows >= 2 ** 31:
             raise SceneError(f"WorldBlocks: {self.rows} rows over {m.num_worlds} worlds pass the 2^31 a Warp "
                              "array holds; step fewer worlds at a time")
-        self.first_np = first[:-1]
         node_row = first[m.node_world_np] + 3 * (np.arange(n) - starts[m.node_world_np])
         self.node_row = wp.array(node_row.astype(np.int32), dtype=wp.int32, device=d)
-        self.first_row = wp.array(self.first_np.astype(np.int32), dtype=wp.int32, device=d)
+        self.first_row = wp.array(first[:-1].astype(np.int32), dtype=wp.int32, device=d)
         self.size = wp.array(self.size_np.astype(np.int32), dtype=wp.int32, device=d)
         self.u = wp.zeros((self.rows, self.columns), dtype=self.dtype, device=d)
         self.partials = wp.zeros((segments, self.columns, self.rows), dtype=self.dtype, device=d)
@@ -191,8 +190,8 @@ class WorldBlocks(WarpedFrames):
         # the worlds dealt into chunks of at most G of one block, for each G the product may take
         most = int(np.bincount(self.block_of).max())
         self.chunks = {}
+        lists = [np.flatnonzero(self.block_of == b) for b in range(len(sizes))]  # each block's worlds
         for g in (g for g in GROUPS if g == 1 or g // 2 < most):
-            lists = [np.flatnonzero(self.block_of == b) for b in range(len(sizes))]
             table = [np.pad(ws[i:i + g], (0, g - len(ws[i:i + g])), constant_values=-1)
                      for ws in lists for i in range(0, len(ws), g)]
             table = np.array(table, dtype=np.int32).reshape(-1, g)
