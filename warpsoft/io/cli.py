@@ -1,6 +1,7 @@
 """Command line: ``warpsoft run SCENE.py [--steps N] [--device cpu|cuda] [--usd OUT] [--report OUT.json]
 [--param key=value ...]``, ``warpsoft sweep SCENE.py --grid ... | --random N ... --out DIR`` (see
-:mod:`warpsoft.io.sweep`), ``warpsoft params SCENE.py``, ``warpsoft plot REPORT.json``,
+:mod:`warpsoft.io.sweep`), ``warpsoft optimize SCENE.py --space ... --minimize METRIC --out DIR`` (see
+:mod:`warpsoft.io.optimize`), ``warpsoft params SCENE.py``, ``warpsoft plot REPORT.json``,
 ``warpsoft --version``."""
 
 from __future__ import annotations
@@ -48,29 +49,77 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     sw = sub.add_parser("sweep", help="run many designs of a scene (its parameters over a grid or random ranges), "
                                       "batched as the worlds of one model; a results table and a plot")
-    sw.add_argument("scene", help="path of the scene file")
     sw.add_argument("--grid", action="append", default=[], metavar="NAME=[V1,V2,...]",
                     help="a swept parameter and its values; several --grid make every combination")
     sw.add_argument("--random", nargs="+", default=None, metavar="N | NAME=LO:HI[:log]",
                     help="N designs spread over the ranges by a Latin hypercube (log: uniform in the logarithm); "
                          "with --grid, each grid point takes the same N")
     sw.add_argument("--seed", type=int, default=0, help="of --random (default: 0)")
-    sw.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
-                    help="a scene parameter fixed for every design (repeatable)")
-    sw.add_argument("--steps", type=int, default=None, help="steps per design (default: the scene's)")
-    sw.add_argument("--batch", type=int, default=256, help="designs stepped together as one model (default: 256)")
-    sw.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:0 (default: Warp's default)")
-    sw.add_argument("--solver", choices=["auto", "pcg", "direct", "jacobi"], default="auto")
-    sw.add_argument("--share-tolerance", type=float, default=1e-10,
-                    help="pcg on CUDA: designs of one mesh share a preconditioner block when their systems are "
-                         "multiples to within this (default 1e-10: exact multiples; 0.01 also shares dynamic "
-                         "designs of one mesh, for less setup and memory)")
-    sw.add_argument("--workers", type=int, default=None,
-                    help="processes meshing the designs first (default: the CPU count; 1: in this process)")
     sw.add_argument("--plot", default=None, metavar="METRIC",
                     help="plot this metric over the swept parameters (default: the first metric)")
-    sw.add_argument("--out", required=True, help="folder of results.csv, the plot and the mesh cache")
+    _batch_arguments(sw, batch=256, out="folder of results.csv, the plot and the mesh cache")
+    op = sub.add_parser("optimize", help="search a scene's design space with Optuna for the best designs by its "
+                                         "metrics, a batch of designs at a time; resumable; the best ones to USD")
+    op.add_argument("--space", action="append", default=[], metavar="NAME=LO:HI[:log|:int] | NAME=[A,B,...]",
+                    help="a design parameter and its range or choices (repeatable)")
+    op.add_argument("--minimize", dest="objectives", action="append", type=lambda m: (m, "minimize"),
+                    metavar="METRIC", help="an objective: a metric of the scene to make small (repeatable)")
+    op.add_argument("--maximize", dest="objectives", action="append", type=lambda m: (m, "maximize"),
+                    metavar="METRIC", help="an objective to make large (repeatable; several: a Pareto front)")
+    op.add_argument("--trials", type=int, default=64, help="trials of the study in all, resumed ones included "
+                                                           "(default: 64)")
+    op.add_argument("--parallel", type=int, default=None,
+                    help="batches run at once per round (default: 1; with --ray, the cluster's GPUs or CPUs)")
+    op.add_argument("--seed", type=int, default=0, help="of the sampler (default: 0)")
+    op.add_argument("--best", type=int, default=1, help="best designs run again to USD (default: 1)")
+    op.add_argument("--study-name", default="warpsoft", help="name of the study in its storage (default: warpsoft)")
+    op.add_argument("--storage", default=None, help="Optuna storage URL (default: sqlite in --out)")
+    _batch_arguments(op, batch=16, out="folder of the study, trials.csv, the plot, the best designs' USD")
     return p
+
+
+def _batch_arguments(p: argparse.ArgumentParser, batch: int, out: str) -> None:
+    """The options ``sweep`` and ``optimize`` share: the scene, how designs run, where results go."""
+    p.add_argument("scene", help="path of the scene file")
+    p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
+                   help="a scene parameter fixed for every design (repeatable)")
+    p.add_argument("--steps", type=int, default=None, help="steps per design (default: the scene's)")
+    p.add_argument("--batch", type=int, default=batch, help=f"designs stepped together as one model (default: {batch})")
+    p.add_argument("--device", default=None, help="Warp device: cpu, cuda, cuda:0 (default: Warp's default)")
+    p.add_argument("--solver", choices=["auto", "pcg", "direct", "jacobi"], default="auto")
+    p.add_argument("--share-tolerance", type=float, default=1e-10,
+                   help="pcg on CUDA: designs of one mesh share a preconditioner block when their systems are "
+                        "multiples to within this (default 1e-10: exact multiples; 0.01 also shares dynamic "
+                        "designs of one mesh, for less setup and memory)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes meshing the designs first (default: the CPU count; 1: in this process)")
+    p.add_argument("--ray", nargs="?", const=True, default=False, metavar="ADDRESS",
+                   help="run the batches as Ray tasks, one per GPU (or CPU) of the cluster at ADDRESS (alone: "
+                        "RAY_ADDRESS's, else a new one on this machine)")
+    p.add_argument("--parquet", action="store_true", help="also write the table as Parquet (needs pyarrow)")
+    p.add_argument("--out", required=True, help=out)
+
+
+def optimize_command(args) -> int:
+    """``warpsoft optimize``: the study run or resumed, the table, the plot, the best designs' USD."""
+    from .optimize import optimize, parse_space
+    from .runner import check_device, parse_params
+
+    check_device(args.device)
+    if not args.objectives:
+        raise SceneError("optimize: give an objective: --minimize METRIC or --maximize METRIC")
+    study, best = optimize(args.scene, parse_space(args.space), args.objectives, args.trials, args.out,
+                           batch=args.batch, steps=args.steps, device=args.device, fixed=parse_params(args.param),
+                           workers=args.workers, ray=args.ray, parallel=args.parallel, seed=args.seed, best=args.best,
+                           study_name=args.study_name, storage=args.storage, parquet=args.parquet, progress=True,
+                           solver=args.solver, share_tolerance=args.share_tolerance)
+    out = Path(args.out)
+    failed = sum(t.state.name == "FAIL" for t in study.trials)
+    print(f"warpsoft optimize: {len(study.trials)} trials ({failed} failed); table: {out / 'trials.csv'}")
+    for rank, b in enumerate(best, start=1):
+        values = ", ".join(f"{m} = {v:.6g}" for (m, _), v in zip(args.objectives, b.values, strict=True))
+        print(f"  best {rank}: trial {b.trial} {b.params}: {values}; USD: {b.usd}")
+    return 0
 
 
 def sweep_command(args) -> int:
@@ -92,7 +141,7 @@ def sweep_command(args) -> int:
     swept = list(designs[0])
     results = sweep(args.scene, designs, steps=args.steps, batch=args.batch, device=args.device,
                     fixed=parse_params(args.param), workers=args.workers, out=args.out, progress=True,
-                    solver=args.solver, share_tolerance=args.share_tolerance)
+                    ray=args.ray, parquet=args.parquet, solver=args.solver, share_tolerance=args.share_tolerance)
     out = Path(args.out)
     print(f"warpsoft sweep: {sum(r.status == 'completed' for r in results)} of {len(results)} designs completed; "
           f"table: {out / 'results.csv'}")
@@ -141,6 +190,8 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         if args.command == "sweep":
             return sweep_command(args)
+        if args.command == "optimize":
+            return optimize_command(args)
         params = parse_params(args.param)
         started = time.perf_counter()
         if not args.quiet:  # meshing may take a while: say what is going on

@@ -1,7 +1,8 @@
 """Sweeps over a scene's parameters: many designs stepped together, as the worlds of one model.
 
     warpsoft sweep SCENE.py [--grid NAME=[v, ...] ...] [--random N NAME=lo:hi[:log] ...]
-                            [--param NAME=VALUE ...] [--batch 256] [--steps N] [--device cuda] --out DIR
+                            [--param NAME=VALUE ...] [--batch 256] [--steps N] [--device cuda]
+                            [--ray [ADDRESS]] [--parquet] --out DIR
 
 A design is one dictionary of scene parameters (``build(**params)``). Designs are meshed first,
 in parallel processes, into the mesh cache (``WARPSOFT_MESH_CACHE``, by default a folder of
@@ -15,7 +16,8 @@ Per design (:class:`DesignResult`): the probe and effector trajectories, the act
 lambda, the effector error, the warnings. The row of the results table holds the parameters,
 the status, and the metrics: the scene's own (an optional ``metrics(result) -> dict`` next to
 ``build``), or by default each probe's last position and each effector's last error. The table
-is written as ``results.csv``; ``plot_sweep`` draws a metric over one or two parameters.
+is written as ``results.csv`` (and ``results.parquet`` on request); ``plot_sweep`` draws a metric
+over one or two parameters. With ``ray``, the batches are Ray tasks (:mod:`warpsoft.io.cluster`).
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
@@ -164,25 +166,34 @@ def premesh(scene_file: str | Path, designs: Sequence[dict], workers: int) -> No
 # ---- the sweep -----------------------------------------------------------------------------
 def sweep(scene_file: str | Path, designs: Sequence[dict], steps: int | None = None, batch: int = 256,
           device: str | None = None, fixed: dict | None = None, workers: int | None = None,
-          out: str | Path | None = None, progress: bool = False, **options) -> list[DesignResult]:
+          out: str | Path | None = None, progress: bool = False, ray: bool | str = False, parquet: bool = False,
+          **options) -> list[DesignResult]:
     """Run every design of ``designs`` (scene parameters, each merged over ``fixed``) for ``steps``
-    steps (the first design's scene's default if None), ``batch`` designs per model. ``workers``
-    processes mesh the designs first into the mesh cache (default: the CPU count; 1: none; no
-    cache, no meshing ahead). ``options`` go to the :class:`Simulator`. With ``out``, writes
-    ``results.csv`` there after each batch (see :func:`write_table`).
-    Returns one :class:`DesignResult` per design, in order."""
-    if int(batch) < 1:
-        raise SceneError(f"sweep: batch must be >= 1, got {batch}")
+    steps (by default the scene's, from each batch's first design), ``batch`` designs per model.
+    ``workers`` processes mesh the designs first into the mesh cache (default: the CPU count; 1:
+    none; no cache, no meshing ahead). ``ray``: run the batches as Ray tasks (True: the cluster
+    of ``RAY_ADDRESS`` or a new one on this machine; a string: that cluster's address; see
+    :mod:`warpsoft.io.cluster`). ``options`` go to the :class:`Simulator`. With ``out``, writes
+    ``results.csv`` there (and ``results.parquet`` with ``parquet``) after each batch (see
+    :func:`write_table`). Returns one :class:`DesignResult` per design, in order."""
     if not designs:
         raise SceneError("sweep: no design to run")
-    module = load_scene_module(scene_file)
-    metrics = getattr(module, "metrics", None)
     designs = [dict(fixed or {}) | dict(d) for d in designs]
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
+
+    def on_batch(results: list[DesignResult]) -> None:
+        if out is not None:
+            write_table(results, out / "results.csv")
+            if parquet:
+                write_table(results, out / "results.parquet")
+        if progress:
+            done = sum(r.status == "completed" for r in results)
+            print(f"warpsoft sweep: {len(results)}/{len(designs)} designs run, {done} completed", flush=True)
+
     with mesh_cache(out):
-        return _run_designs(scene_file, designs, steps, int(batch), device, workers, metrics, progress, out, options)
+        return evaluate(scene_file, designs, steps, batch, device, workers, ray, options, on_batch)
 
 
 @contextmanager
@@ -192,42 +203,60 @@ def mesh_cache(out: Path | None):
     if out is None or os.environ.get("WARPSOFT_MESH_CACHE"):
         yield
         return
-    os.environ["WARPSOFT_MESH_CACHE"] = str(out / "mesh_cache")
+    os.environ["WARPSOFT_MESH_CACHE"] = str(Path(out).resolve() / "mesh_cache")
     try:
         yield
     finally:
         del os.environ["WARPSOFT_MESH_CACHE"]
 
 
-def _run_designs(scene_file, designs: list[dict], steps: int | None, batch: int, device: str | None,
-                 workers: int | None, metrics: Callable | None, progress: bool, out: Path | None,
-                 options: dict) -> list[DesignResult]:
-    """The sweep's body; the table is written after each batch (a sweep stopped keeps its batches)."""
+def evaluate(scene_file: str | Path, designs: Sequence[dict], steps: int | None, batch: int, device: str | None,
+             workers: int | None = None, ray: bool | str = False, options: dict | None = None,
+             on_batch: Callable[[list[DesignResult]], None] | None = None) -> list[DesignResult]:
+    """Designs (complete parameter dicts) run ``batch`` at a time, here or as Ray tasks; the body
+    of :func:`sweep` and of :func:`warpsoft.io.optimize.optimize`. ``on_batch(results)`` is
+    called with the designs run so far, in order, after each batch (a run stopped keeps them)."""
+    if int(batch) < 1:
+        raise SceneError(f"sweep: batch must be >= 1, got {batch}")
+    load_scene_module(scene_file)  # a missing or broken scene file: said before anything runs
     if os.environ.get("WARPSOFT_MESH_CACHE"):  # (without a cache, meshing ahead would mesh twice)
         premesh(scene_file, designs, (os.cpu_count() or 1) if workers is None else int(workers))
+    chunks = [[DesignResult(start + k, dict(d)) for k, d in enumerate(designs[start:start + int(batch)])]
+              for start in range(0, len(designs), int(batch))]
     results: list[DesignResult] = []
-    for start in range(0, len(designs), batch):
-        chunk = [DesignResult(start + k, d) for k, d in enumerate(designs[start:start + batch])]
-        scenes = []
-        for r in chunk:
-            try:
-                scenes.append(build_scene(scene_file, r.params))
-            except WarpsoftError as exc:
-                r.status, r.error = "invalid", f"{type(exc).__name__}: {exc}"
-        valid = [r for r in chunk if r.status != "invalid"]
-        if steps is None and scenes:
-            steps = scenes[0].steps
-        if valid:
-            run_batch(scenes, valid, int(steps), device, options)
-        for r in chunk:
-            r.metrics = design_metrics(r, metrics)
-        results += chunk
-        if out is not None:
-            write_table(results, out / "results.csv")
-        if progress:
-            done = sum(r.status == "completed" for r in results)
-            print(f"warpsoft sweep: {len(results)}/{len(designs)} designs run, {done} completed", flush=True)
+    with ExitStack() as stack:
+        if ray:
+            from .cluster import ray_batches, ray_session
+
+            stack.enter_context(ray_session(ray))
+            batches = ray_batches(scene_file, chunks, steps, device, dict(options or {}))
+        else:
+            batches = (run_designs(scene_file, chunk, steps, device, dict(options or {})) for chunk in chunks)
+        for chunk in batches:
+            results = sorted(results + chunk, key=lambda r: r.index)
+            if on_batch is not None:
+                on_batch(results)
     return results
+
+
+def run_designs(scene_file: str | Path, chunk: list[DesignResult], steps: int | None, device: str | None,
+                options: dict) -> list[DesignResult]:
+    """One batch: each design built (a refused build: ``invalid``), the valid ones stepped as
+    the worlds of one model for ``steps`` steps (None: the first one's scene's), then their
+    metrics. Fills and returns ``chunk``."""
+    metrics = getattr(load_scene_module(scene_file), "metrics", None)
+    scenes = []
+    for r in chunk:
+        try:
+            scenes.append(build_scene(scene_file, r.params))
+        except WarpsoftError as exc:
+            r.status, r.error = "invalid", f"{type(exc).__name__}: {exc}"
+    valid = [r for r in chunk if r.status != "invalid"]
+    if valid:
+        run_batch(scenes, valid, int(scenes[0].steps if steps is None else steps), device, options)
+    for r in chunk:
+        r.metrics = design_metrics(r, metrics)
+    return chunk
 
 
 def run_batch(scenes: list, results: list[DesignResult], steps: int, device: str | None, options: dict) -> None:
@@ -317,10 +346,32 @@ def table_rows(results: Sequence[DesignResult]) -> list[dict]:
 
 
 def write_table(results: Sequence[DesignResult], path: str | Path) -> Path:
-    """The results table as CSV (columns: every key of every row, in order of first use)."""
-    rows = table_rows(results)
-    columns = list(dict.fromkeys(k for row in rows for k in row))
+    """The results table (:func:`table_rows`) as CSV, or as Parquet when ``path`` ends in
+    ``.parquet`` (see :func:`write_rows`)."""
+    return write_rows(table_rows(results), path)
+
+
+def write_rows(rows: Sequence[dict], path: str | Path) -> Path:
+    """Rows as a table at ``path``: CSV (columns: every key of every row, in order of first use;
+    a missing value is empty), or Parquet for a ``.parquet`` path (pyarrow: typed columns, a
+    missing value null; a column mixing numbers and text is stored as text)."""
     path = Path(path)
+    columns = list(dict.fromkeys(k for row in rows for k in row))
+    if path.suffix == ".parquet":
+        try:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+        except ImportError:
+            raise SceneError("a Parquet table needs pyarrow: pip install 'warpsoft[sweep]'") from None
+        arrays = {}
+        for c in columns:
+            values = [row.get(c) for row in rows]
+            try:
+                arrays[c] = pa.array(values)
+            except (pa.ArrowInvalid, pa.ArrowTypeError):  # e.g. a parameter given as 3 and as "soft"
+                arrays[c] = pa.array([None if v is None else str(v) for v in values])
+        pq.write_table(pa.table(arrays), path)
+        return path
     with open(path, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=columns, restval="")
         writer.writeheader()
