@@ -18,15 +18,20 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
           poisson_ratio=0.45, total_mass=0.5, gravity=9.81, dt=0.02, rayleigh_mass=0.1, rayleigh_stiffness=0.1,
           mesh_size=0.01, mode="direct", cable_displacements=(0.0, 0.0, 0.0, 0.0), ramp_time=1.0,
           max_cable_displacement=0.02, max_cable_step=0.001, target=None, circle_radius=0.015, circle_depth=0.003,
-          circle_period=4.0, static=False, mesh=None):
+          circle_period=4.0, static=False, mesh=None, cable_schedule=None):
     """``mode="direct"``: each cable i shortens linearly to ``cable_displacements[i]`` (m) over
     ``ramp_time`` (s). ``mode="inverse"``: the cables follow the effector's ``target`` (x, y, z)
     (m), or by default a circle of ``circle_radius`` (m), ``circle_depth`` (m) below the rest top,
     one turn per ``circle_period`` (s), entered over the first quarter turn. Cables stay in
     [0, ``max_cable_displacement``] (SoftRobots: 20 mm) with tension >= 0; in inverse mode they
-    change by at most ``max_cable_step`` (m) per step. ``static=True``: quasi-static steps."""
+    change by at most ``max_cable_step`` (m) per step. ``static=True``: quasi-static steps.
+    ``cable_schedule``: in direct mode, a function of time (s) giving the four cable
+    displacements (m), instead of the ramp to ``cable_displacements``."""
     if mode not in ("direct", "inverse"):
         raise ws.SceneError(f"diamond: mode must be 'direct' or 'inverse', got {mode!r}")
+    if cable_schedule is not None and (mode != "direct" or not callable(cable_schedule)):
+        raise ws.SceneError(f"diamond: cable_schedule must be a function of time, in direct mode; got "
+                            f"{cable_schedule!r} in mode {mode!r}")
     if len(cable_displacements) != 4:
         raise ws.SceneError(f"diamond: cable_displacements must have 4 values, got {cable_displacements!r}")
     base_top = 0.01
@@ -53,8 +58,12 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
     scene.fix(body, ws.InBox((-0.015, -0.015, -0.04), (0.015, 0.015, base_top)))  # SoftRobots' base box
     step = max_cable_step if mode == "inverse" else math.inf
     for i, (c, d, pull) in enumerate(zip(corners, cable_displacements, pulls, strict=True)):
+        if cable_schedule is None:
+            value = lambda t, d=d: d * min(t / ramp_time, 1.0)  # noqa: E731
+        else:
+            value = lambda t, i=i: cable_schedule(t)[i]  # noqa: E731
         scene.add_cable(f"cable{i}", body, points=[tuple(c)], pull_point=tuple(pull), mode="displacement",
-                        value=lambda t, d=d: d * min(t / ramp_time, 1.0), min_displacement=0.0,
+                        value=value, min_displacement=0.0,
                         max_displacement=max_cable_displacement, max_step=step)
     top_point = np.array([0.0, 0.0, top_height])
     if mode == "inverse":
