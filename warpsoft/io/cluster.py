@@ -4,7 +4,8 @@ many machines (``--ray [ADDRESS]``).
 Ray schedules; warpsoft only cuts the designs into batches. Each batch is one task running
 :func:`warpsoft.io.sweep.run_designs` (one model, one world per design) and asking Ray for one
 GPU when the device is CUDA (Ray then shows that task a single GPU, its ``cuda:0``), or one CPU
-otherwise. The results come back as the tasks end, in any order; the caller puts them in
+otherwise (a GPU task also takes the cluster's CPUs per GPU, for its threaded host side).
+The results come back as the tasks end, in any order; the caller puts them in
 order.
 
 - Address: ``True`` joins the cluster of ``RAY_ADDRESS``, else starts a Ray instance on this
@@ -83,7 +84,12 @@ def ray_batches(scene_file: str | Path, chunks: list[list[DesignResult]], steps:
     if gpu and not ray.cluster_resources().get("GPU"):
         raise SceneError(f"--ray with device {device or 'cuda (Warp default)'}: the Ray cluster has no GPU "
                          f"(resources: {ray.cluster_resources()})")
-    task = ray.remote(num_gpus=1 if gpu else 0, num_cpus=1, max_retries=0)(_remote_batch)
+    resources = ray.cluster_resources()
+    # A GPU task also takes its share of the CPUs: Ray caps a task's threads (OMP_NUM_THREADS) at
+    # its CPUs, and the host side of a batch (LAPACK's inverse of the preconditioner's blocks) is
+    # threaded. (Measured on the 2-GPU H200 host, one thread instead of 32 cost 6 % of the stepping.)
+    cpus = max(1, int(resources.get("CPU", 1) // resources.get("GPU", 1))) if gpu else 1
+    task = ray.remote(num_gpus=1 if gpu else 0, num_cpus=cpus, max_retries=0)(_remote_batch)
     source = Path(scene_file).read_text()
     cache = os.environ.get("WARPSOFT_MESH_CACHE")
     worker_device = "cuda" if gpu else device  # a task sees the one GPU Ray gave it as cuda:0
