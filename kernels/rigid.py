@@ -150,13 +150,14 @@ def advance(p0: wp.array(dtype=wp.vec3d), r0: wp.array(dtype=wp.quatd), base_lin
 
 
 @wp.kernel
-def health(p: wp.array(dtype=wp.vec3d), r: wp.array(dtype=wp.quatd), flag: wp.array(dtype=wp.int32)):
-    """Count the bodies whose pose is not finite into ``flag``."""
+def health(p: wp.array(dtype=wp.vec3d), r: wp.array(dtype=wp.quatd), body_world: wp.array(dtype=wp.int32),
+           flag: wp.array(dtype=wp.int32)):
+    """Count the bodies whose pose is not finite into ``flag`` of their world."""
     b = wp.tid()
     x, q = p[b], r[b]
     s = x[0] + x[1] + x[2] + q[0] + q[1] + q[2] + q[3]
     if not wp.isfinite(s):
-        wp.atomic_add(flag, 0, 1)
+        wp.atomic_add(flag, body_world[b], 1)
 
 
 @wp.kernel

@@ -106,3 +106,32 @@ def test_the_sweep_command_writes_the_table_and_the_plot(beam, tmp_path, capsys)
     assert "4 of 4 designs completed" in capsys.readouterr().out
     assert main(["sweep", str(beam), "--out", str(out)]) == 2  # no design given: a clear error
     assert "give the designs" in capsys.readouterr().err
+
+
+def test_a_failing_world_is_named_and_the_rest_of_its_batch_runs_on_together(beam, monkeypatch):
+    """Two designs of a batch of five blow up at their first step: the step names their worlds,
+    they keep the error they meet alone, and the three others run again as one batch of three
+    (not one by one), to the same deflections as alone."""
+    import warpsoft.io.sweep as sweep_module
+
+    built, real = [], sweep_module.Simulator
+    monkeypatch.setattr(sweep_module, "Simulator",
+                        lambda model, **kw: built.append(model.num_worlds) or real(model, **kw))
+    designs = [{"young_modulus": 1e6}, {"tip_force": 1e30}, {"young_modulus": 2e6}, {"tip_force": 1e30},
+               {"young_modulus": 4e6}]
+    batched = sweep(beam, designs, batch=5, workers=1, solver="direct")
+    assert built == [5, 3]
+    built.clear()
+    alone = sweep(beam, designs, batch=1, workers=1, solver="direct")
+    assert [r.status for r in batched] == [r.status for r in alone] == ["completed", "failed"] * 2 + ["completed"]
+    for a, b in zip(batched, alone, strict=True):
+        assert a.error == b.error and a.steps == b.steps
+        if a.status == "completed":
+            assert np.abs(a.probes["tip"] - b.probes["tip"]).max() < 1e-12
+    assert "(world" not in batched[1].error and "moved" in batched[1].error
+    from warpsoft.io.runner import build_scene
+
+    sim = ws.Simulator(ws.finalize([build_scene(beam, d) for d in designs[:3]], "cpu"), solver="direct")
+    with pytest.raises(ws.SimulationError, match=r"step 1 \(t = [0-9.]+ s\) \(world 1\): a node moved") as info:
+        sim.step()
+    assert info.value.worlds == [1]

@@ -14,7 +14,12 @@ class MeshError(SceneError):
 
 
 class SimulationError(WarpsoftError, RuntimeError):
-    """A step produced a non-finite state; the state before the step is kept."""
+    """A step produced a non-finite state; the state before the step is kept. ``worlds``: the
+    worlds of a model of several that failed, when the step could tell (else None)."""
+
+    def __init__(self, message: str, worlds: list[int] | None = None):
+        super().__init__(message)
+        self.worlds = worlds
 
 
 class UserCodeError(SceneError):

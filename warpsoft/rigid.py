@@ -98,10 +98,11 @@ class RigidBodies:
                       out.body_w, self.pose_p, self.pose_r])
 
     def linearize(self, state, flag: wp.array) -> None:
-        """At ``state``: the world inverse inertia, and the non-finite poses counted into ``flag``."""
+        """At ``state``: the world inverse inertia, and the non-finite poses counted into ``flag``
+        (per world)."""
         m = self.model
         self._launch(kernels.inverse_inertia, m.num_rigid, [state.body_r, m.rigid_inertia, self.inv_inertia_w])
-        self._launch(kernels.health, m.num_rigid, [state.body_p, state.body_r, flag])
+        self._launch(kernels.health, m.num_rigid, [state.body_p, state.body_r, m.rigid_world, flag])
 
     # ---- host ------------------------------------------------------------------------------
     def poses(self, state, world: int | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:

@@ -138,8 +138,8 @@ class Simulator:
         if m.f_const is not None:
             wp.copy(self.f_ext, m.f_const)
         self.dx = wp.zeros(n, dtype=wp.vec3d, device=d)  # a Newton iteration's correction (m)
-        self.health_flag = wp.zeros(1, dtype=wp.int32, device=d)  # count of non-finite nodes
-        self.health_step = wp.zeros(1, dtype=wp.float64, device=d)  # largest |dx|^2 (m^2)
+        self.health_flag = wp.zeros(m.num_worlds, dtype=wp.int32, device=d)  # per world: non-finite nodes
+        self.health_step = wp.zeros(m.num_worlds, dtype=wp.float64, device=d)  # per world: largest |dx|^2 (m^2)
         self.inverted = wp.zeros(m.num_worlds, dtype=wp.int32, device=d)  # elements with det F <= 0, per world
         # every probe's position (m), made once: a launch on the same arrays is replayed (launch.py)
         self.probes = wp.zeros(len(m.probe_names), dtype=wp.vec3d, device=d)

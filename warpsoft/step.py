@@ -328,7 +328,7 @@ def relinearize(sim: Simulator, actuated: bool) -> None:
     sim.newton.residual(correction(sim, actuated, make=False))
     sim.health_flag.zero_()
     sim.health_step.zero_()
-    launch(linalg.step_health, m.num_nodes, inputs=[q, sim.newton.dx[0]],
+    launch(linalg.step_health, m.num_nodes, inputs=[q, sim.newton.dx[0], m.node_world],
            outputs=[sim.health_flag, sim.health_step], device=m.device)
     if sim.rigid is not None:
         sim.rigid.linearize(sim.next, sim.health_flag)

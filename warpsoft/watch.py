@@ -31,24 +31,36 @@ def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], warn: 
     """No NaN leaves a step: a non-finite node is an error, and so is a node that moved more
     than ``ABSURD_STEP`` times the model's size in one step (finite but absurd: a load of 1e300 N
     put positions at 1e298 m and "-inf" in the report); more than the model's size is a warning
-    (when ``warn``: the step's last read, not each of its Newton iterations)."""
-    bad, largest = int(host["health_flag"][0]), float(np.sqrt(host["health_step"][0]))
-    if not bad and largest > ABSURD_STEP * sim.size:
+    (when ``warn``: the step's last read, not each of its Newton iterations). Each world is
+    judged on its own nodes; the error names the worlds that failed (``SimulationError.worlds``)."""
+    bad, largest = host["health_flag"], np.sqrt(host["health_step"])  # (worlds,)
+    absurd = [w for w in range(len(bad)) if not bad[w] and largest[w] > ABSURD_STEP * sim.size]
+    if absurd:
         sim.forget_warm_starts()
         raise SimulationError(
-            f"step {stats.index} (t = {stats.time:g} s): a node moved {largest:.3g} m in one step, more than "
-            f"{ABSURD_STEP:g} times the model's size ({sim.size:.3g} m): loads or inputs out of all proportion "
-            "(or a diverging solve); the state before the step is kept")
-    if warn and largest > sim.size:
-        stats.warnings.append(f"step {stats.index}: a node moved {largest:.3g} m in one step, more than the "
-                              f"model's size {sim.size:.3g} m: the simulation is likely unstable")
-    if bad:
+            f"step {stats.index} (t = {stats.time:g} s){_worlds_label(sim, absurd)}: a node moved "
+            f"{largest[absurd].max():.3g} m in one step, more than {ABSURD_STEP:g} times the model's size "
+            f"({sim.size:.3g} m): loads or inputs out of all proportion (or a diverging solve); the state before "
+            "the step is kept", worlds=absurd)
+    if warn:
+        for w in np.flatnonzero(largest > sim.size):
+            stats.warnings.append(f"step {stats.index}{sim.world_label(int(w))}: a node moved {largest[w]:.3g} m in "
+                                  f"one step, more than the model's size {sim.size:.3g} m: the simulation is likely "
+                                  "unstable")
+    failed = [int(w) for w in np.flatnonzero(bad)]
+    if failed:
         sim.forget_warm_starts()
         raise SimulationError(
-            f"step {stats.index} (t = {stats.time:g} s): {bad} node(s) got non-finite positions "
-            f"(CG {stats.cg_iterations} iterations, residual {stats.cg_residual:.3e}); "
-            "the state before the step is kept"
-        )
+            f"step {stats.index} (t = {stats.time:g} s){_worlds_label(sim, failed)}: {int(bad.sum())} node(s) got "
+            f"non-finite positions (CG {stats.cg_iterations} iterations, residual {stats.cg_residual:.3e}); "
+            "the state before the step is kept", worlds=failed)
+
+
+def _worlds_label(sim: Simulator, worlds: list[int]) -> str:
+    """" (world 3)", " (worlds 1, 4)" in a model of several worlds; "" with one."""
+    if sim.model.num_worlds == 1:
+        return ""
+    return f" (world{'s' if len(worlds) > 1 else ''} {', '.join(map(str, worlds))})"
 
 
 def inverted_elements(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
@@ -98,7 +110,7 @@ def linearization(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.n
     nf = int(host["force_rows"][w])
     predicted = host["delta_free"][s:e] + host["W"][s:e, :nf] @ host["lam"][s:s + nf]
     ws.linearization_error = gap = float(np.abs(host["delta"][s:e] - predicted).max()) if e > s else 0.0
-    motion = float(np.sqrt(host["health_step"][0]))
+    motion = float(np.sqrt(host["health_step"][w]))
     if begins(sim, ("unpredicted", w), gap > UNPREDICTED * motion and gap > 1e-9 * sim.size):
         stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: the rows ended {gap:.3g} away from the "
                               f"step's linear prediction, for nodes that moved up to {motion:.3g} m: the "

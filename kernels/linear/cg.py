@@ -163,12 +163,13 @@ def cg_direction(z: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d), w
 
 
 @wp.kernel
-def step_health(x: wp.array(dtype=wp.vec3d), dx: wp.array(dtype=wp.vec3d), bad: wp.array(dtype=wp.int32),
-                largest: wp.array(dtype=wp.float64)):
-    """``bad[0]`` counts nodes of ``x`` that are NaN or infinite; ``largest[0]`` is the largest
-    squared step ``|dx|^2`` (m^2) of a finite node."""
+def step_health(x: wp.array(dtype=wp.vec3d), dx: wp.array(dtype=wp.vec3d), node_world: wp.array(dtype=wp.int32),
+                bad: wp.array(dtype=wp.int32), largest: wp.array(dtype=wp.float64)):
+    """Per world (``node_world``): ``bad[w]`` counts its nodes of ``x`` that are NaN or
+    infinite; ``largest[w]`` is the largest squared step ``|dx|^2`` (m^2) of its finite nodes."""
     i = wp.tid()
+    w = node_world[i]
     if not wp.isfinite(x[i]):
-        wp.atomic_add(bad, 0, 1)
+        wp.atomic_add(bad, w, 1)
     else:
-        wp.atomic_max(largest, 0, wp.dot(dx[i], dx[i]))
+        wp.atomic_max(largest, w, wp.dot(dx[i], dx[i]))

@@ -8,9 +8,10 @@ A design is one dictionary of scene parameters (``build(**params)``). Designs ar
 in parallel processes, into the mesh cache (``WARPSOFT_MESH_CACHE``, by default a folder of
 the output). They are then stepped ``batch`` at a time: each batch is one
 :func:`warpsoft.finalize` model with one world per design, so its designs share every launch.
-A design whose ``build`` fails is recorded as ``invalid``. In a batch whose step fails, each
-design is run again alone, so the failure is that design's alone (``failed``, with the steps it
-finished); the others complete.
+A design whose ``build`` fails is recorded as ``invalid``. A step that fails names its
+worlds: those designs are ``failed``, with the steps they finished and the error they meet
+alone, and the rest of the batch runs again together (a failure that names no world, as in a
+solver, runs each design of the batch again alone); the others complete.
 
 Per design (:class:`DesignResult`): the probe and effector trajectories, the actuators' delta and
 lambda, the effector error, the warnings. The row of the results table holds the parameters,
@@ -26,6 +27,7 @@ import csv
 import itertools
 import math
 import os
+import re
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -260,17 +262,30 @@ def run_designs(scene_file: str | Path, chunk: list[DesignResult], steps: int | 
 
 
 def run_batch(scenes: list, results: list[DesignResult], steps: int, device: str | None, options: dict) -> None:
-    """Step ``scenes`` together (one world each) and fill ``results``; if a step fails, run each
-    design alone, so that only the failing ones are marked."""
+    """Step ``scenes`` together (one world each) and fill ``results``. When a step fails, the
+    worlds it names keep their record up to the failure (``failed``) and the others run again
+    as a batch; a failure that names no world runs each design again alone."""
     try:
         _step_worlds(scenes, results, steps, device, options)
     except SimulationError as exc:
-        if len(scenes) == 1:
-            results[0].status, results[0].error = "failed", f"{type(exc).__name__}: {exc}"
+        failed = set(exc.worlds or []) if len(scenes) > 1 else {0}
+        if not failed:
+            for scene, r in zip(scenes, results, strict=True):
+                _clear(r)
+                run_batch([scene], [r], steps, device, options)
             return
-        for scene, r in zip(scenes, results, strict=True):
-            _clear(r)
-            run_batch([scene], [r], steps, device, options)
+        for w in failed:
+            results[w].status, results[w].error = "failed", f"{type(exc).__name__}: {_own_message(exc, w)}"
+        rest = [k for k in range(len(scenes)) if k not in failed]
+        for k in rest:
+            _clear(results[k])
+        if rest:
+            run_batch([scenes[k] for k in rest], [results[k] for k in rest], steps, device, options)
+
+
+def _own_message(exc: SimulationError, world: int) -> str:
+    """The error as the design would have met it alone: without the batch's world numbers."""
+    return re.sub(r" \(worlds? [0-9, ]+\)", "", str(exc), count=1)
 
 
 def _clear(r: DesignResult) -> None:
