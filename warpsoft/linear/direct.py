@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from .assembly import FACTORIZATIONS, Assembly, CholmodFactor, solve_dofs
+from .assembly import FACTORIZATIONS, Assembly, CholmodFactor, WorldsCholmod, solve_dofs
 from .operator import SystemOperator
 from .pcg import SolveResult
 
@@ -41,9 +41,13 @@ class SparseDirect:
                              f"got {factorization!r}")
         self.op = operator
         self.assembly = Assembly(operator)
-        self.factor = FACTORIZATIONS[factorization](self.assembly)
+        if factorization == "cholmod" and operator.model.num_worlds > 1:
+            self.factor = WorldsCholmod(self.assembly)  # each world's solves as it has them alone
+        else:
+            self.factor = FACTORIZATIONS[factorization](self.assembly)
         # W straight from the factor (no compliance columns solved): CHOLMOD on the CPU device
-        self.factor_compliance = isinstance(self.factor, CholmodFactor) and operator.model.device.is_cpu
+        self.factor_compliance = (isinstance(self.factor, (CholmodFactor, WorldsCholmod))
+                                  and operator.model.device.is_cpu)
         self.keep, self.factorizations, self.behind = False, 0, 0
         self._made = False  # a factorization exists
 
