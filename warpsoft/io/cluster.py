@@ -80,11 +80,10 @@ def ray_batches(scene_file: str | Path, chunks: list[list[DesignResult]], steps:
     """Run each chunk of designs as one Ray task, in the current :func:`ray_session`; yield
     each chunk, filled, as its task ends."""
     ray = _ray()
-    gpu = _wants_gpu(device)
-    if gpu and not ray.cluster_resources().get("GPU"):
+    gpu, resources = _wants_gpu(device), ray.cluster_resources()
+    if gpu and not resources.get("GPU"):
         raise SceneError(f"--ray with device {device or 'cuda (Warp default)'}: the Ray cluster has no GPU "
-                         f"(resources: {ray.cluster_resources()})")
-    resources = ray.cluster_resources()
+                         f"(resources: {resources})")
     # A GPU task also takes its share of the CPUs: Ray caps a task's threads (OMP_NUM_THREADS) at
     # its CPUs, and the host side of a batch (LAPACK's inverse of the preconditioner's blocks) is
     # threaded. (Measured on the 2-GPU H200 host, one thread instead of 32 cost 6 % of the stepping.)

@@ -275,7 +275,7 @@ def run_batch(scenes: list, results: list[DesignResult], steps: int, device: str
                 run_batch([scene], [r], steps, device, options)
             return
         for w in failed:
-            results[w].status, results[w].error = "failed", f"{type(exc).__name__}: {_own_message(exc, w)}"
+            results[w].status, results[w].error = "failed", f"{type(exc).__name__}: {_own_message(exc)}"
         rest = [k for k in range(len(scenes)) if k not in failed]
         for k in rest:
             _clear(results[k])
@@ -283,7 +283,7 @@ def run_batch(scenes: list, results: list[DesignResult], steps: int, device: str
             run_batch([scenes[k] for k in rest], [results[k] for k in rest], steps, device, options)
 
 
-def _own_message(exc: SimulationError, world: int) -> str:
+def _own_message(exc: SimulationError) -> str:
     """The error as the design would have met it alone: without the batch's world numbers."""
     return re.sub(r" \(worlds? [0-9, ]+\)", "", str(exc), count=1)
 
