@@ -34,26 +34,27 @@ def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], warn: 
     (when ``warn``: the step's last read, not each of its Newton iterations). Each world is
     judged on its own nodes; the error names the worlds that failed (``SimulationError.worlds``)."""
     bad, largest = host["health_flag"], np.sqrt(host["health_step"])  # (worlds,)
+    failed = [int(w) for w in np.flatnonzero(bad)]
     absurd = [w for w in range(len(bad)) if not bad[w] and largest[w] > ABSURD_STEP * sim.size]
-    if absurd:
-        sim.forget_warm_starts()
-        raise SimulationError(
-            f"step {stats.index} (t = {stats.time:g} s){_worlds_label(sim, absurd)}: a node moved "
-            f"{largest[absurd].max():.3g} m in one step, more than {ABSURD_STEP:g} times the model's size "
-            f"({sim.size:.3g} m): loads or inputs out of all proportion (or a diverging solve); the state before "
-            "the step is kept", worlds=absurd)
     if warn:
         for w in np.flatnonzero(largest > sim.size):
             stats.warnings.append(f"step {stats.index}{sim.world_label(int(w))}: a node moved {largest[w]:.3g} m in "
                                   f"one step, more than the model's size {sim.size:.3g} m: the simulation is likely "
                                   "unstable")
-    failed = [int(w) for w in np.flatnonzero(bad)]
-    if failed:
+    if failed or absurd:
         sim.forget_warm_starts()
+        worlds = sorted(failed + absurd)
+    if failed:  # (any absurd world is named with them: the step failed for all of them)
         raise SimulationError(
-            f"step {stats.index} (t = {stats.time:g} s){_worlds_label(sim, failed)}: {int(bad.sum())} node(s) got "
+            f"step {stats.index} (t = {stats.time:g} s){_worlds_label(sim, worlds)}: {int(bad.sum())} node(s) got "
             f"non-finite positions (CG {stats.cg_iterations} iterations, residual {stats.cg_residual:.3e}); "
-            "the state before the step is kept", worlds=failed)
+            "the state before the step is kept", worlds=worlds)
+    if absurd:
+        raise SimulationError(
+            f"step {stats.index} (t = {stats.time:g} s){_worlds_label(sim, worlds)}: a node moved "
+            f"{largest[absurd].max():.3g} m in one step, more than {ABSURD_STEP:g} times the model's size "
+            f"({sim.size:.3g} m): loads or inputs out of all proportion (or a diverging solve); the state before "
+            "the step is kept", worlds=worlds)
 
 
 def _worlds_label(sim: Simulator, worlds: list[int]) -> str:
