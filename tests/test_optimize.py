@@ -34,7 +34,7 @@ def test_design_space_parsing():
     assert space["E"].log and (space["E"].low, space["E"].high) == (1e5, 1e6)
     assert isinstance(space["n"], optuna.distributions.IntDistribution) and space["n"].high == 5
     assert not space["r"].log and space["kind"].choices == ("a", "b")
-    with pytest.raises(ws.SceneError, match=r"range of 'E' must be finite with LO < HI .* got 0.0:1.0"):
+    with pytest.raises(ws.SceneError, match=r"optimize: range of 'E' must be finite with lo < hi .* got 0.0:1.0"):
         parse_space(["E=0:1:log"])
     with pytest.raises(ws.SceneError, match=r"integer range of 'n' needs whole bounds, got 2.5:5.0"):
         parse_space(["n=2.5:5:int"])

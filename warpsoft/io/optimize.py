@@ -35,7 +35,7 @@ from pathlib import Path
 
 from ..errors import SceneError, WarpsoftError
 from .runner import build_scene, parse_value, run
-from .sweep import DesignResult, evaluate, mesh_cache, write_rows
+from .sweep import DesignResult, check_range, evaluate, mesh_cache, write_rows
 
 DIRECTIONS = ("minimize", "maximize")
 
@@ -73,9 +73,7 @@ def parse_space(items: Sequence[str]) -> dict:
         except (ValueError, IndexError):
             raise SceneError(f"optimize: --space expects NAME=LO:HI[:log|:int] or NAME=[A, B, ...], "
                              f"got {item!r}") from None
-        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi) or (kind == "log" and lo <= 0.0):
-            raise SceneError(f"optimize: range of {name!r} must be finite with LO < HI (and LO > 0 for log), "
-                             f"got {lo}:{hi}")
+        check_range("optimize", name, lo, hi, kind == "log")
         if kind == "int":
             if lo != int(lo) or hi != int(hi):
                 raise SceneError(f"optimize: integer range of {name!r} needs whole bounds, got {lo}:{hi}")

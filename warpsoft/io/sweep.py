@@ -101,9 +101,7 @@ def random_designs(count: int, ranges: dict[str, tuple], seed: int = 0) -> list[
         log = scale == ["log"]
         if scale and not log:
             raise SceneError(f"sweep: range of {name!r}: the third field may only be 'log', got {scale[0]!r}")
-        if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi) or (log and lo <= 0.0):
-            raise SceneError(f"sweep: range of {name!r} must be finite with lo < hi (and lo > 0 for log), "
-                             f"got {lo}:{hi}")
+        check_range("sweep", name, lo, hi, log)
         bounds[name] = (math.log(lo), math.log(hi), True) if log else (float(lo), float(hi), False)
     if not bounds:
         raise SceneError("sweep: --random needs at least one NAME=lo:hi range")
@@ -116,6 +114,13 @@ def random_designs(count: int, ranges: dict[str, tuple], seed: int = 0) -> list[
             d[name] = float(math.exp(v) if log else v)
         designs.append(d)
     return designs
+
+
+def check_range(what: str, name: str, lo: float, hi: float, log: bool) -> None:
+    """A swept or searched range: finite, ``lo < hi``, and ``lo > 0`` on a log scale (``what``
+    names the command in the error)."""
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi) or (log and lo <= 0.0):
+        raise SceneError(f"{what}: range of {name!r} must be finite with lo < hi (and lo > 0 for log), got {lo}:{hi}")
 
 
 def parse_grid(items: Sequence[str]) -> dict[str, list]:
