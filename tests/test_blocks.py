@@ -7,7 +7,7 @@ import warp as wp
 from warpsoft.kernels.linear.cg import DONE, NUM_SCALARS
 
 import warpsoft as ws
-from warpsoft.linear import WarpedFactor, WorldBlocks
+from warpsoft.linear import WarpedFactor, WorldBlocks, blocks
 
 
 def beam(young_modulus=1e6, poisson_ratio=0.45, cells=20, static=True):
@@ -48,9 +48,13 @@ def test_blocks_apply_each_worlds_inverse_on_turned_bodies():
             assert np.abs(z.numpy() - want[:k]).max() < tol * np.abs(want).max(), (precision, k)
 
 
-def test_proportional_worlds_share_a_block_and_step_as_alone():
+@pytest.mark.parametrize("tiled_from", [8, 2])
+def test_proportional_worlds_share_a_block_and_step_as_alone(monkeypatch, tiled_from):
     """At rest the 1 and 3 MPa beams have proportional stiffnesses: one block serves both, the
-    second scaled by 1/3. Each world then steps as it does alone, in its own iteration count."""
+    second scaled by 1/3. Each world then steps as it does alone, in its own iteration count;
+    also when the shared block's product is the tiled one (``tiled_from=2``; its sums run in
+    another order, so the 1e-10 tolerance may be met one iteration apart)."""
+    monkeypatch.setattr(blocks, "TILED_FROM", tiled_from)
     scenes = four_designs()
     sim = ws.Simulator(ws.finalize(scenes), solver="pcg", preconditioner="blocks", precision="float64",
                        tolerance=1e-10)
@@ -59,6 +63,7 @@ def test_proportional_worlds_share_a_block_and_step_as_alone():
     assert isinstance(pre, WorldBlocks)
     assert pre.blocks == 3 and list(pre.block_of) == [0, 0, 1, 2]
     assert abs(pre.scale_np[1] - 3.0) < 1e-9
+    assert pre.tiled_worlds == (2 if tiled_from == 2 else 0)
     for w, scene in enumerate(scenes):
         alone = ws.Simulator(scene, solver="pcg", preconditioner="blocks", precision="float64", tolerance=1e-10)
         history = [alone.step() for _ in range(3)]
@@ -66,7 +71,9 @@ def test_proportional_worlds_share_a_block_and_step_as_alone():
         moved = np.abs(q - sim.model.rest_np[sim.model.world_nodes(w)]).max()
         assert moved > 1e-4
         assert np.abs(sim.positions(w) - q).max() < 1e-8 * moved
-        assert [s.worlds[w].cg_iterations for s in together] == [s.cg_iterations for s in history]
+        its = np.array([s.worlds[w].cg_iterations for s in together]) - [s.cg_iterations for s in history]
+        # the tiled product sums in another order than the streamed one alone: one iteration either way
+        assert np.abs(its).max() <= (0 if tiled_from == 8 else 1)
 
 
 def test_a_shared_block_serves_its_worlds_and_converged_ones_skip_it():
@@ -104,6 +111,46 @@ def test_a_shared_block_serves_its_worlds_and_converged_ones_skip_it():
         fresh_part = np.ones(n, dtype=bool)
         fresh_part[stale] = False
         assert np.array_equal(got[:, fresh_part], fresh.numpy()[:, fresh_part])
+
+
+def test_a_block_of_many_worlds_is_one_tiled_product_and_skips_converged_tiles():
+    """Three beams at 1, 2 and 3 MPa share a block at rest; from ``tiled_from=2`` on, their
+    product is one tiled matrix product (their columns side by side), while the two other
+    designs stay streamed. Both equal the whole model's host factor for every column count, in
+    float64 and float32. A tile whose columns all belong to converged worlds is skipped: their
+    results stay as the previous application left them."""
+    sim = ws.Simulator(ws.finalize([beam(), beam(2e6), beam(3e6), beam(cells=16), beam(1e6, 0.3)]), solver="direct")
+    sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
+    host = WarpedFactor(sim.operator, 3, "host")
+    host.prepare()
+    n = sim.model.num_nodes
+    rng = np.random.default_rng(5)
+    r1, r2 = (wp.array(rng.standard_normal((3, n, 3)), dtype=wp.vec3d) for _ in range(2))
+    want = wp.zeros_like(r2)
+    host.apply(r2, want)
+    want = want.numpy()
+    for precision, tol in (("float64", 1e-9), ("float32", 1e-5)):
+        pre = WorldBlocks(sim.operator, 3, precision, tiled_from=2)
+        scal = wp.zeros((3, 5, NUM_SCALARS), dtype=wp.float64)
+        pre.watch(scal)
+        pre.prepare()
+        assert list(pre.block_of) == [0, 0, 0, 1, 2] and pre.tiled_worlds == 3
+        for k in (3, 2, 1):
+            z = wp.zeros((k, n), dtype=wp.vec3d)
+            pre.apply(r2[:k], z)
+            assert np.abs(z.numpy() - want[:k]).max() < tol * np.abs(want).max(), (precision, k)
+    z1 = wp.zeros_like(r1)
+    pre.apply(r1, z1)
+    s = np.zeros((3, 5, NUM_SCALARS))
+    s[:, :3, DONE] = 1.0  # the tiled block's three worlds have converged
+    scal.assign(s)
+    z = wp.zeros_like(r2)
+    pre.apply(r2, z)
+    got, tiled = z.numpy(), slice(0, sim.model.world_nodes(2).stop)
+    assert np.array_equal(got[:, tiled], z1.numpy()[:, tiled])
+    assert np.abs(got[:, tiled.stop:] - want[:, tiled.stop:]).max() < 1e-5 * np.abs(want).max()
+    with pytest.raises(ValueError, match="tiled_from must be at least 1, got 0"):
+        WorldBlocks(sim.operator, 3, tiled_from=0)
 
 
 def test_a_share_tolerance_shares_dynamic_designs_and_keeps_the_answer():

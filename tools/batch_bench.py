@@ -38,19 +38,20 @@ def designs(count: int, meshes: int) -> list[dict]:
 
 def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -> tuple[float, int, dict]:
     """Median step time (s) of ``scenes`` as one model, its DOFs, and what the solve did: the CG
-    iterations of a step (median over the timed steps), and the preconditioner's distinct blocks
-    and device memory when it keeps them per world."""
+    iterations of a step and the mean of its worlds' (medians over the timed steps), and the
+    preconditioner's distinct blocks and device memory when it keeps them per world."""
     t0 = time.perf_counter()
     sim = ws.Simulator(ws.finalize(scenes, device), device=device, **options)
     for _ in range(warmup):
         sim.step()
     setup = time.perf_counter() - t0
-    times, its = [], []
+    times, its, world_its = [], [], []
     for _ in range(steps):
         t0 = time.perf_counter()
         stats = sim.step()
         times.append(time.perf_counter() - t0)
         its.append(stats.cg_iterations)
+        world_its.append(np.mean([w.cg_iterations for w in stats.worlds]))
     pre = getattr(sim.solver, "precond", None)
     parts = {}
     if pre is not None and getattr(pre, "capturable", False):  # a CG iteration's two big products, alone
@@ -58,7 +59,8 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -
         solver.scal.zero_()  # no world done: the product runs for all of them
         parts = {"precond_ms": 1e3 * _median_call(lambda: pre.apply(solver.r, solver.z), sim.model.device),
                  "operator_ms": 1e3 * _median_call(lambda: sim.operator.apply(solver.p, solver.ap), sim.model.device)}
-    info = {**parts, "cg_iterations": float(np.median(its)), "setup_s": setup, "preconditioner": type(pre).__name__,
+    info = {**parts, "cg_iterations": float(np.median(its)), "world_cg_iterations": float(np.median(world_its)),
+            "setup_s": setup, "preconditioner": type(pre).__name__,
             "blocks": getattr(pre, "blocks", None), "precond_mb": getattr(pre, "memory_bytes", 0) / 1e6}
     return float(np.median(times)), sim.model.num_dofs, info
 
@@ -100,7 +102,8 @@ def main(argv=None) -> int:
         rows.append({"designs": n, "dofs": dofs, "step_ms": 1e3 * median, "design_steps_per_s": n / median,
                      "wall_s": time.perf_counter() - t0, **info})
         print(f"batch {n:5d}: {dofs:8d} DOFs  step {1e3 * median:8.2f} ms  {n / median:9.1f} design-steps/s  "
-              f"CG {info['cg_iterations']:.0f}  {info['preconditioner']} blocks {info['blocks']} "
+              f"CG {info['cg_iterations']:.0f} (a world's mean {info['world_cg_iterations']:.1f})  "
+              f"{info['preconditioner']} blocks {info['blocks']} "
               f"{info['precond_mb']:.0f} MB  setup {info['setup_s']:.1f} s  "
               f"P^-1 {info.get('precond_ms', 0):.2f} ms  A {info.get('operator_ms', 0):.2f} ms", flush=True)
     alone = None

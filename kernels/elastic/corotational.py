@@ -82,6 +82,43 @@ def stiffness_product(
     wp.atomic_add(y, c, t[3], P * g3)
 
 
+@wp.kernel
+def stiffness_product_columns(
+    x: wp.array2d(dtype=wp.vec3d),
+    tets: wp.array(dtype=wp.vec4i),
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    scale: wp.float64,
+    y: wp.array2d(dtype=wp.vec3d),
+):
+    """:func:`stiffness_product` with one thread per element for all the columns of ``x``
+    (launched over the elements): the element's data are read, and its gradients formed, once."""
+    e = wp.tid()
+    t = tets[e]
+    Di = dm_inv[e]
+    R = rot[e]
+    Rt = wp.transpose(R)
+    g0 = shape_gradient(Di, 0)
+    g1 = shape_gradient(Di, 1)
+    g2 = shape_gradient(Di, 2)
+    g3 = shape_gradient(Di, 3)
+    s = scale * volume[e]
+    mu_e = mu[e]
+    lam_e = lam[e]
+    for c in range(x.shape[0]):
+        G = (wp.outer(Rt * x[c, t[0]], g0) + wp.outer(Rt * x[c, t[1]], g1) + wp.outer(Rt * x[c, t[2]], g2)
+             + wp.outer(Rt * x[c, t[3]], g3))
+        eps = wp.float64(0.5) * (G + wp.transpose(G))
+        P = s * (R * hooke(eps, mu_e, lam_e))
+        wp.atomic_add(y, c, t[0], P * g0)
+        wp.atomic_add(y, c, t[1], P * g1)
+        wp.atomic_add(y, c, t[2], P * g2)
+        wp.atomic_add(y, c, t[3], P * g3)
+
+
 @wp.func
 def stiffness_block(ga: wp.vec3d, gb: wp.vec3d, mu: wp.float64, lam: wp.float64) -> wp.mat33d:
     """Unrotated 3x3 block ``K0_ab / V`` coupling nodes ``a`` and ``b`` (Pa m^-2). Rotated,

@@ -16,6 +16,13 @@ the product, are divided by ``G``; the operands of the ``G`` worlds are the same
 warp). A chunk of worlds whose columns have all converged (``scal[c, w, DONE]``) skips its
 product: their ``z`` is no longer used (their step length is 0), so converged worlds stop
 costing the dense product's bandwidth.
+
+A block shared by many worlds is a matrix product instead, ``Z_b = A_b^-1 [U_w1 .. U_wn]``
+(:func:`tiled_kernel`): its worlds' operands are the columns of one ``(size, k n)`` region of a
+second flat array ``G`` (column ``c n + slot`` for the world in slot ``slot``), and the product
+runs in tiles through shared memory (Warp's ``tile_matmul``), so each number of the block loaded
+serves a whole tile of columns. Streamed, a thread serves at most ``G = 8`` worlds and reloads its
+operands for each; tiled, the product is bound by arithmetic, not by loads.
 """
 
 import warp as wp
@@ -32,15 +39,18 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
     per thread, ``W = width`` numbers per load, and up to ``G = group`` worlds of one block served by
     each thread (compile-time constants, hence cached per key).
 
-    - ``rotate_in(r, q_rot, mask, node_row, U)`` over ``(k, n)``: ``U[node_row[i] + a, c] = (mask_i Q_i^T r[c, i])_a``;
+    - ``rotate_in(r, q_rot, mask, node_row, node_world, first_row, tiled_col, tiled_stride, U, G)`` over
+      ``(k, n)``: ``U[node_row[i] + a, c] = (mask_i Q_i^T r[c, i])_a``, or for a world ``w`` of a tiled
+      block (``tiled_col[w] >= 0``) ``G[node_row[i] - first_row[w] + a, tiled_col[w] + c tiled_stride[w]]``;
     - ``partial_product(A, U, row_chunk, chunk_first, chunk_worlds, first_row, block_row, size, scale, scal, P)``
       over ``(S, T)``: the worlds are dealt into chunks of at most ``G`` worlds sharing a block
       (``chunk_worlds`` ``(chunks, G)``, -1 where a chunk has fewer); thread ``t`` serves the ``W``
       columns ``t - chunk_first[ch]`` of chunk ``ch = row_chunk[t]``'s block for each of its worlds:
       ``P[s, c, first_row[w] + cols] = scale[w] sum_j A[block_row[w] + j, cols] U[first_row[w] + j, c]``
       over the segment ``s`` of the block's ``size`` rows. One load of the block serves ``G`` worlds;
-    - ``rotate_out(P, q_rot, mask, node_row, z)`` over ``(k, n)``:
-      ``z[c, i] = mask_i Q_i sum_s P[s, c, node_row[i] + a]``.
+    - ``rotate_out(P, Z, q_rot, mask, node_row, node_world, first_row, tiled_col, tiled_stride, scale, z)``
+      over ``(k, n)``: ``z[c, i] = mask_i Q_i sum_s P[s, c, node_row[i] + a]``, or for a world of a tiled
+      block ``mask_i Q_i scale[w] Z[...]`` at the place ``rotate_in`` took its operand.
     """
     key = (columns, dtype, segments, unroll, width, group)
     if key in _kernels:
@@ -53,13 +63,23 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
     @wp.kernel(module="unique")
     def blocks_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
                          mask: wp.array(dtype=wp.vec3d), node_row: wp.array(dtype=wp.int32),
-                         U: wp.array2d(dtype=dtype)):
+                         node_world: wp.array(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
+                         tiled_col: wp.array(dtype=wp.int32), tiled_stride: wp.array(dtype=wp.int32),
+                         U: wp.array2d(dtype=dtype), G: wp.array2d(dtype=dtype)):
         c, i = wp.tid()
         v = wp.cw_mul(mask[i], wp.transpose(q_rot[i]) * r[c, i])
+        w = node_world[i]
         row = node_row[i]
-        U[row, c] = dtype(v[0])
-        U[row + 1, c] = dtype(v[1])
-        U[row + 2, c] = dtype(v[2])
+        if tiled_col[w] >= 0:  # a world of a tiled block: its column of G, rows local to the world
+            row = row - first_row[w]
+            col = tiled_col[w] + c * tiled_stride[w]
+            G[row, col] = dtype(v[0])
+            G[row + 1, col] = dtype(v[1])
+            G[row + 2, col] = dtype(v[2])
+        else:
+            U[row, c] = dtype(v[0])
+            U[row + 1, c] = dtype(v[1])
+            U[row + 2, c] = dtype(v[2])
 
     @wp.kernel(module="unique")
     def blocks_partial_product(A: wp.array2d(dtype=wide), U: wp.array2d(dtype=dtype),
@@ -107,15 +127,78 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
                         P[s, c, u0[g] + W * i + v] = f * acc[g * W + v, c]
 
     @wp.kernel(module="unique")
-    def blocks_rotate_out(P: wp.array3d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
+    def blocks_rotate_out(P: wp.array3d(dtype=dtype), Z: wp.array2d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
                           mask: wp.array(dtype=wp.vec3d), node_row: wp.array(dtype=wp.int32),
-                          z: wp.array2d(dtype=wp.vec3d)):
+                          node_world: wp.array(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
+                          tiled_col: wp.array(dtype=wp.int32), tiled_stride: wp.array(dtype=wp.int32),
+                          scale: wp.array(dtype=dtype), z: wp.array2d(dtype=wp.vec3d)):
         c, i = wp.tid()
+        w = node_world[i]
         row = node_row[i]
         y = wp.vec3d()
-        for s in range(S):
-            y += wp.vec3d(wp.float64(P[s, c, row]), wp.float64(P[s, c, row + 1]), wp.float64(P[s, c, row + 2]))
+        if tiled_col[w] >= 0:  # the tiled product left the world's sums unscaled
+            row = row - first_row[w]
+            col = tiled_col[w] + c * tiled_stride[w]
+            y = wp.float64(scale[w]) * wp.vec3d(wp.float64(Z[row, col]), wp.float64(Z[row + 1, col]),
+                                                wp.float64(Z[row + 2, col]))
+        else:
+            for s in range(S):
+                y += wp.vec3d(wp.float64(P[s, c, row]), wp.float64(P[s, c, row + 1]), wp.float64(P[s, c, row + 2]))
         z[c, i] = wp.cw_mul(mask[i], q_rot[i] * y)
 
     _kernels[key] = (blocks_rotate_in, blocks_partial_product, blocks_rotate_out)
     return _kernels[key]
+
+
+def tiled_kernel(dtype, tile_m: int, tile_n: int, tile_k: int):
+    """The product of the blocks shared by many worlds, in ``(TM, TN)`` tiles of the result over
+    ``TK``-deep slices (compile-time constants, hence cached per key); launched tiled over the
+    tile list:
+    ``tiled_product(A, G, tiles, region_size, region_col, region_worlds, region_first, columns, scal, Z)``.
+
+    Tile ``t`` is ``tiles[t] = (a0, r0, c0, g)``: rows ``r0 .. r0 + TM`` of region ``g``'s block,
+    which starts at row ``a0 - r0`` of ``A``; columns ``c0 .. c0 + TN`` of ``G`` and ``Z``.
+    Region ``g`` holds the ``n = region_worlds[g]`` worlds of one block, its columns starting at
+    ``region_col[g]``: column ``c n + slot`` is column ``c`` of world
+    ``region_first``-indexed slot ``slot``. It computes
+    ``Z[r0:r0+TM, c0:c0+TN] = sum_j A[a0:a0+TM, j:j+TK] G[j:j+TK, c0:c0+TN]`` over the block's
+    ``region_size[g]`` rows, for the first ``columns`` columns of each world; a tile whose
+    columns are all past those, or all of converged worlds, is skipped.
+    """
+    key = ("tiled", dtype, tile_m, tile_n, tile_k)
+    if key in _kernels:
+        return _kernels[key]
+    TM, TN, TK = tile_m, tile_n, tile_k
+
+    @wp.kernel(module="unique")
+    def blocks_tiled_product(A: wp.array2d(dtype=dtype), G: wp.array2d(dtype=dtype), tiles: wp.array(dtype=wp.vec4i),
+                             region_size: wp.array(dtype=wp.int32), region_col: wp.array(dtype=wp.int32),
+                             region_worlds: wp.array(dtype=wp.int32), region_first: wp.array(dtype=wp.int32),
+                             world_list: wp.array(dtype=wp.int32), columns: wp.int32,
+                             scal: wp.array3d(dtype=wp.float64), Z: wp.array2d(dtype=dtype)):
+        t = wp.tid()
+        tile = tiles[t]
+        g = tile[3]
+        n = region_worlds[g]
+        first = tile[2] - region_col[g]  # this tile's first (column, slot) of its region: c n + slot
+        if first >= columns * n:
+            return  # every column of the tile is past those in use
+        running = wp.int32(0)
+        for j in range(TN):
+            q = first + j
+            if q < columns * n:
+                c = q // n
+                w = world_list[region_first[g] + q - c * n]
+                if scal[c, w, DONE] == wp.float64(0.0):
+                    running = 1
+        if running == 0:
+            return  # every column of the tile has converged
+        acc = wp.tile_zeros(shape=(TM, TN), dtype=dtype)
+        for j in range(region_size[g] // TK):
+            a = wp.tile_load(A, shape=(TM, TK), offset=(tile[0], j * TK))
+            u = wp.tile_load(G, shape=(TK, TN), offset=(j * TK, tile[2]))
+            wp.tile_matmul(a, u, acc)
+        wp.tile_store(Z, acc, offset=(tile[1], tile[2]))
+
+    _kernels[key] = blocks_tiled_product
+    return blocks_tiled_product

@@ -42,6 +42,9 @@ UNROLL, WIDTH = 2, 2  # loads in flight per thread, numbers per load (the whole-
 THREADS = 1 << 20  # segments are added until the product has about this many threads (enough loads in flight)
 GROUPS = (1, 2, 4, 8)  # worlds of one block a thread of the product may serve
 SUMS = 48  # a thread's sums at most (G worlds x W numbers x k columns): past this they spill from registers
+TILE = (64, 64, 64)  # the tiled product's rows and columns of a tile of the result, and rows of a slice
+TILE_THREADS = 128  # threads of a tile
+TILED_FROM = 8  # worlds of one block from which its product is tiled (below, streamed)
 
 
 class WorldBlocks(WarpedFrames):
@@ -56,6 +59,9 @@ class WorldBlocks(WarpedFrames):
         share: let proportional worlds share a block (False: one block per world).
         share_tolerance: world ``w`` shares block ``b`` when ``max|A_w - s A_b| <= tol max|A_w|`` for
             some ``s > 0`` (the element blocks and lumped masses compared; the same mesh and supports).
+        tiled_from: a block shared by at least this many worlds is applied as one tiled matrix
+            product over all their columns (``kernels/linear/blocks.py``); a block of fewer is
+            streamed. None: ``TILED_FROM``.
 
     Attributes: ``blocks`` (distinct inverses), ``block_of`` ``(worlds,)``, ``scale`` ``(worlds,)``,
     ``refreshes``, ``memory_bytes``.
@@ -65,7 +71,7 @@ class WorldBlocks(WarpedFrames):
 
     def __init__(self, operator: SystemOperator, columns: int, precision: str = "float32",
                  refresh_ratio: float = 2.0, refresh_floor: int = 40, share: bool = True,
-                 share_tolerance: float = 1e-10):
+                 share_tolerance: float = 1e-10, tiled_from: int | None = None):
         if precision not in ("float64", "float32"):
             raise ValueError(f"WorldBlocks: precision must be 'float64' or 'float32', got {precision!r}")
         m = operator.model
@@ -73,16 +79,21 @@ class WorldBlocks(WarpedFrames):
         super().__init__(operator, refresh_ratio, refresh_floor)
         self.columns = int(columns)
         self.share, self.share_tolerance = bool(share), float(share_tolerance)
+        tiled_from = TILED_FROM if tiled_from is None else tiled_from
+        if int(tiled_from) < 1:
+            raise ValueError(f"WorldBlocks: tiled_from must be at least 1, got {tiled_from!r}")
+        self.tiled_from = int(tiled_from)
         self.dtype = wp.float64 if precision == "float64" else wp.float32
         n = m.num_nodes
-        # the flat layout: world w's 3 n_w DOFs padded to a multiple of S * UNROLL rows (and of WIDTH)
+        # the flat layout: world w's 3 n_w DOFs padded to a multiple of S * UNROLL rows (and of
+        # WIDTH, and of the tiles' rows)
         starts = m.world_node_start.astype(np.int64)
         dofs = 3 * np.diff(starts)
         segments = 1
         while segments < 64 and segments * int(dofs.sum()) // WIDTH < THREADS:
             segments *= 2
         self.segments = segments
-        quantum = segments * UNROLL * WIDTH // np.gcd(segments * UNROLL, WIDTH)
+        quantum = int(np.lcm.reduce([segments * UNROLL, WIDTH, TILE[0], TILE[2]]))
         self.size_np = (-(-dofs // quantum) * quantum).astype(np.int64)  # (worlds,) rows of each world
         first = np.concatenate([[0], np.cumsum(self.size_np)])
         self.rows = int(first[-1])
@@ -91,6 +102,7 @@ class WorldBlocks(WarpedFrames):
                              "array holds; step fewer worlds at a time")
         node_row = first[m.node_world_np] + 3 * (np.arange(n) - starts[m.node_world_np])
         self.node_row = wp.array(node_row.astype(np.int32), dtype=wp.int32, device=d)
+        self.node_world = m.node_world
         self.first_row = wp.array(first[:-1].astype(np.int32), dtype=wp.int32, device=d)
         self.size = wp.array(self.size_np.astype(np.int32), dtype=wp.int32, device=d)
         self.u = wp.zeros((self.rows, self.columns), dtype=self.dtype, device=d)
@@ -187,11 +199,14 @@ class WorldBlocks(WarpedFrames):
         npd = np.float64 if self.dtype == wp.float64 else np.float32
         self.block_row = wp.array(block_first[self.block_of].astype(np.int32), dtype=wp.int32, device=d)
         self.scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
-        # the worlds dealt into chunks of at most G of one block, for each G the product may take
-        most = int(np.bincount(self.block_of).max())
-        self.chunks = {}
         lists = [np.flatnonzero(self.block_of == b) for b in range(len(sizes))]  # each block's worlds
-        for g in (g for g in GROUPS if g == 1 or g // 2 < most):
+        tiled = [b for b, ws in enumerate(lists) if len(ws) >= self.tiled_from]
+        self._tile(tiled, lists)
+        # the other blocks' worlds dealt into chunks of at most G of one block, for each G the product may take
+        lists = [ws for b, ws in enumerate(lists) if b not in tiled]
+        most = max((len(ws) for ws in lists), default=0)
+        self.chunks = {}
+        for g in (g for g in GROUPS if lists and (g == 1 or g // 2 < most)):
             table = [np.pad(ws[i:i + g], (0, g - len(ws[i:i + g])), constant_values=-1)
                      for ws in lists for i in range(0, len(ws), g)]
             table = np.array(table, dtype=np.int32).reshape(-1, g)
@@ -201,6 +216,41 @@ class WorldBlocks(WarpedFrames):
                                        device=d),
                               wp.array(first[:-1].astype(np.int32), dtype=wp.int32, device=d),
                               wp.array(table, dtype=wp.int32, device=d), int(first[-1]))
+
+    def _tile(self, tiled: list[int], lists: list[np.ndarray]) -> None:
+        """The layout of the tiled product for the blocks ``tiled`` (``lists[b]``: block ``b``'s
+        worlds): block ``b``'s ``n`` worlds take ``k n`` columns of ``G``, padded to whole tiles
+        (world in slot ``s``, column ``c``: ``col_b + c n + s``); its rows, ``size`` of them, are cut
+        into tiles of ``TM`` rows."""
+        d, (tm, tn, _) = self.op.model.device, TILE
+        col, stride = np.full(self.op.model.num_worlds, -1), np.ones(self.op.model.num_worlds)
+        tiles, region_size, region_col, region_worlds, world_list, region_first = [], [], [], [], [], []
+        width = 0
+        for g, b in enumerate(tiled):
+            ws, size = lists[b], int(self.size_np[lists[b][0]])
+            col[ws], stride[ws] = width + np.arange(len(ws)), len(ws)
+            region_size.append(size)
+            region_col.append(width)
+            region_worlds.append(len(ws))
+            region_first.append(len(world_list))
+            world_list.extend(ws.tolist())
+            span = -(-self.columns * len(ws) // tn) * tn
+            tiles += [(int(self.block_first[b]) + r, r, width + c, g) for r in range(0, size, tm)
+                      for c in range(0, span, tn)]
+            width += span
+        rows = max(region_size, default=1)
+
+        def ints(values, dtype=wp.int32):
+            return wp.array(np.array(values, dtype=np.int32).reshape(-1, 4) if dtype == wp.vec4i
+                            else np.array(values, dtype=np.int32), dtype=dtype, device=d)
+
+        self.tiled_col, self.tiled_stride = ints(col), ints(stride)
+        self.tiles = ints(tiles, wp.vec4i) if tiles else None
+        self.regions = [ints(region_size), ints(region_col), ints(region_worlds), ints(region_first),
+                        ints(world_list if world_list else [0])]
+        self.g = wp.zeros((rows, max(width, 1)), dtype=self.dtype, device=d)
+        self.g_out = wp.zeros_like(self.g)
+        self.tiled_worlds = len(world_list)
 
     def refresh(self) -> None:
         """Factorize each block at the current rotations (its first world's state) and take them
@@ -234,14 +284,21 @@ class WorldBlocks(WarpedFrames):
         """``z = Q blockdiag(s_w A_b^-1) Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns``; fixed DOFs 0."""
         m, d = self.op.model, self.op.model.device
         k = r.shape[0]
-        group = max(g for g in self.chunks if g == 1 or g * WIDTH * k <= SUMS)
-        row_chunk, chunk_first, chunk_worlds, threads = self.chunks[group]
+        group = max((g for g in self.chunks if g == 1 or g * WIDTH * k <= SUMS), default=1)
         rotate_in, product, rotate_out = kernels.block_kernels(k, self.dtype, self.segments, UNROLL, WIDTH, group)
-        launch(rotate_in, r.shape, inputs=[r, self.q_rot, m.mask, self.node_row], outputs=[self.u], device=d)
-        launch(product, (self.segments, threads),
-               inputs=[self._wide, self.u, row_chunk, chunk_first, chunk_worlds, self.first_row, self.block_row,
-                       self.size, self.scale, self._done], outputs=[self.partials], device=d)
-        launch(rotate_out, r.shape, inputs=[self.partials, self.q_rot, m.mask, self.node_row], outputs=[z], device=d)
+        layout = [self.node_row, self.node_world, self.first_row, self.tiled_col, self.tiled_stride]
+        launch(rotate_in, r.shape, inputs=[r, self.q_rot, m.mask, *layout], outputs=[self.u, self.g], device=d)
+        if self.chunks:  # the streamed blocks
+            row_chunk, chunk_first, chunk_worlds, threads = self.chunks[group]
+            launch(product, (self.segments, threads),
+                   inputs=[self._wide, self.u, row_chunk, chunk_first, chunk_worlds, self.first_row, self.block_row,
+                           self.size, self.scale, self._done], outputs=[self.partials], device=d)
+        if self.tiles is not None:  # the tiled blocks
+            wp.launch_tiled(kernels.tiled_kernel(self.dtype, *TILE), dim=(self.tiles.shape[0],),
+                            inputs=[self.inverse, self.g, self.tiles, *self.regions, k, self._done],
+                            outputs=[self.g_out], block_dim=TILE_THREADS, device=d)
+        launch(rotate_out, r.shape, inputs=[self.partials, self.g_out, self.q_rot, m.mask, *layout, self.scale],
+               outputs=[z], device=d)
 
 
 def _dense_entries(tets: np.ndarray, nodes: int) -> np.ndarray:
