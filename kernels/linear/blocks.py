@@ -154,13 +154,14 @@ def tiled_kernel(dtype, tile_m: int, tile_n: int, tile_k: int):
     """The product of the blocks shared by many worlds, in ``(TM, TN)`` tiles of the result over
     ``TK``-deep slices (compile-time constants, hence cached per key); launched tiled over the
     tile list:
-    ``tiled_product(A, G, tiles, region_size, region_col, region_worlds, region_first, columns, scal, Z)``.
+    ``tiled_product(A, G, tiles, region_size, region_col, region_worlds, region_first, world_list,
+    columns, scal, Z)``.
 
     Tile ``t`` is ``tiles[t] = (a0, r0, c0, g)``: rows ``r0 .. r0 + TM`` of region ``g``'s block,
     which starts at row ``a0 - r0`` of ``A``; columns ``c0 .. c0 + TN`` of ``G`` and ``Z``.
     Region ``g`` holds the ``n = region_worlds[g]`` worlds of one block, its columns starting at
-    ``region_col[g]``: column ``c n + slot`` is column ``c`` of world
-    ``region_first``-indexed slot ``slot``. It computes
+    ``region_col[g]``: its column ``c n + slot`` is column ``c`` of world
+    ``world_list[region_first[g] + slot]``. It computes
     ``Z[r0:r0+TM, c0:c0+TN] = sum_j A[a0:a0+TM, j:j+TK] G[j:j+TK, c0:c0+TN]`` over the block's
     ``region_size[g]`` rows, for the first ``columns`` columns of each world; a tile whose
     columns are all past those, or all of converged worlds, is skipped.
