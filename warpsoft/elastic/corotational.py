@@ -14,9 +14,10 @@ from warpsoft.kernels.elastic import corotational as kernels
 
 from ..launch import launch
 
-# From this many elements on CUDA (and always on the CPU), ``K x`` takes one thread per element for
-# all the columns: on an H200, 1024 Diamonds' 5 columns took 3.48 ms against 4.12 ms with a thread
-# per column and element; below it, a column's threads are needed to fill the device.
+# From this many elements on CUDA (and always on the CPU), ``K x`` of several columns takes one
+# thread per element for all of them: on an H200, 1024 Diamonds' 5 columns took 3.48 ms against
+# 4.12 ms with a thread per column and element; below it, a column's threads are needed to fill
+# the device. One column keeps the thread per column and element.
 ELEMENT_MAJOR_FROM = 1 << 16
 
 
@@ -46,7 +47,7 @@ class Corotational:
     def apply(self, x: wp.array, y: wp.array, rot: wp.array, scale: float) -> None:
         """``y[c] += scale K x[c]`` for ``(k, n)`` vec3d ``x`` and ``y`` (N per m of ``x``)."""
         m = self.model
-        if m.device.is_cpu or m.num_elements >= ELEMENT_MAJOR_FROM:
+        if x.shape[0] > 1 and (m.device.is_cpu or m.num_elements >= ELEMENT_MAJOR_FROM):
             launch(kernels.stiffness_product_columns, m.num_elements,
                    inputs=[x, m.tets, *self._material(), rot, scale], outputs=[y], device=m.device)
             return
