@@ -49,6 +49,23 @@ def corotational_forces(
         wp.atomic_sub(force, t[a], P * shape_gradient(Di, a))
 
 
+@wp.func
+def add_element_product(x: wp.array2d(dtype=wp.vec3d), c: wp.int32, t: wp.vec4i, R: wp.mat33d, g0: wp.vec3d,
+                        g1: wp.vec3d, g2: wp.vec3d, g3: wp.vec3d, s: wp.float64, mu: wp.float64, lam: wp.float64,
+                        y: wp.array2d(dtype=wp.vec3d)):
+    """``y[c] += s K0_e`` applied to column ``c`` of ``x`` in the element's rotated frame
+    (``s = scale V``; ``g`` the shape gradients): strain of ``R^T x``, Hooke, forces rotated back."""
+    Rt = wp.transpose(R)
+    G = (wp.outer(Rt * x[c, t[0]], g0) + wp.outer(Rt * x[c, t[1]], g1) + wp.outer(Rt * x[c, t[2]], g2)
+         + wp.outer(Rt * x[c, t[3]], g3))
+    eps = wp.float64(0.5) * (G + wp.transpose(G))
+    P = s * (R * hooke(eps, mu, lam))
+    wp.atomic_add(y, c, t[0], P * g0)
+    wp.atomic_add(y, c, t[1], P * g1)
+    wp.atomic_add(y, c, t[2], P * g2)
+    wp.atomic_add(y, c, t[3], P * g3)
+
+
 @wp.kernel
 def stiffness_product(
     x: wp.array2d(dtype=wp.vec3d),
@@ -64,22 +81,9 @@ def stiffness_product(
     """``y[c] += scale * K x[c]``, one thread per column ``c`` and element ``e``, with
     ``K_e = R (V B^T C B) R^T`` (launched over ``(k, elements)``)."""
     c, e = wp.tid()
-    t = tets[e]
     Di = dm_inv[e]
-    R = rot[e]
-    Rt = wp.transpose(R)
-    g0 = shape_gradient(Di, 0)
-    g1 = shape_gradient(Di, 1)
-    g2 = shape_gradient(Di, 2)
-    g3 = shape_gradient(Di, 3)
-    G = (wp.outer(Rt * x[c, t[0]], g0) + wp.outer(Rt * x[c, t[1]], g1) + wp.outer(Rt * x[c, t[2]], g2)
-         + wp.outer(Rt * x[c, t[3]], g3))
-    eps = wp.float64(0.5) * (G + wp.transpose(G))
-    P = (scale * volume[e]) * (R * hooke(eps, mu[e], lam[e]))
-    wp.atomic_add(y, c, t[0], P * g0)
-    wp.atomic_add(y, c, t[1], P * g1)
-    wp.atomic_add(y, c, t[2], P * g2)
-    wp.atomic_add(y, c, t[3], P * g3)
+    add_element_product(x, c, tets[e], rot[e], shape_gradient(Di, 0), shape_gradient(Di, 1), shape_gradient(Di, 2),
+                        shape_gradient(Di, 3), scale * volume[e], mu[e], lam[e], y)
 
 
 @wp.kernel
@@ -100,7 +104,6 @@ def stiffness_product_columns(
     t = tets[e]
     Di = dm_inv[e]
     R = rot[e]
-    Rt = wp.transpose(R)
     g0 = shape_gradient(Di, 0)
     g1 = shape_gradient(Di, 1)
     g2 = shape_gradient(Di, 2)
@@ -109,14 +112,7 @@ def stiffness_product_columns(
     mu_e = mu[e]
     lam_e = lam[e]
     for c in range(x.shape[0]):
-        G = (wp.outer(Rt * x[c, t[0]], g0) + wp.outer(Rt * x[c, t[1]], g1) + wp.outer(Rt * x[c, t[2]], g2)
-             + wp.outer(Rt * x[c, t[3]], g3))
-        eps = wp.float64(0.5) * (G + wp.transpose(G))
-        P = s * (R * hooke(eps, mu_e, lam_e))
-        wp.atomic_add(y, c, t[0], P * g0)
-        wp.atomic_add(y, c, t[1], P * g1)
-        wp.atomic_add(y, c, t[2], P * g2)
-        wp.atomic_add(y, c, t[3], P * g3)
+        add_element_product(x, c, t, R, g0, g1, g2, g3, s, mu_e, lam_e, y)
 
 
 @wp.func
