@@ -277,9 +277,13 @@ class Simulator:
             raise SceneError(f"control: expected {worlds} Control(s) or None, one per world, got {control!r:.80}")
         return controls
 
-    def world_label(self, world: int) -> str:
-        """" (world w)" in messages of a model of several worlds, "" with one."""
-        return f" (world {world})" if self.model.num_worlds > 1 else ""
+    def world_label(self, world: int | Sequence[int]) -> str:
+        """" (world w)", or " (worlds a, b)" for several, in messages of a model of several
+        worlds; "" with one."""
+        if self.model.num_worlds == 1:
+            return ""
+        worlds = [world] if isinstance(world, (int, np.integer)) else list(world)
+        return f" (world{'s' if len(worlds) > 1 else ''} {', '.join(map(str, worlds))})"
 
     def forget_warm_starts(self) -> None:
         """A poisoned warm start would spoil the next attempt: the solutions and, since a captured

@@ -46,22 +46,15 @@ def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], warn: 
         worlds = sorted(failed + absurd)
     if failed:  # (any absurd world is named with them: the step failed for all of them)
         raise SimulationError(
-            f"step {stats.index} (t = {stats.time:g} s){_worlds_label(sim, worlds)}: {int(bad.sum())} node(s) got "
+            f"step {stats.index} (t = {stats.time:g} s){sim.world_label(worlds)}: {int(bad.sum())} node(s) got "
             f"non-finite positions (CG {stats.cg_iterations} iterations, residual {stats.cg_residual:.3e}); "
             "the state before the step is kept", worlds=worlds)
     if absurd:
         raise SimulationError(
-            f"step {stats.index} (t = {stats.time:g} s){_worlds_label(sim, worlds)}: a node moved "
+            f"step {stats.index} (t = {stats.time:g} s){sim.world_label(worlds)}: a node moved "
             f"{largest[absurd].max():.3g} m in one step, more than {ABSURD_STEP:g} times the model's size "
             f"({sim.size:.3g} m): loads or inputs out of all proportion (or a diverging solve); the state before "
             "the step is kept", worlds=worlds)
-
-
-def _worlds_label(sim: Simulator, worlds: list[int]) -> str:
-    """" (world 3)", " (worlds 1, 4)" in a model of several worlds; "" with one."""
-    if sim.model.num_worlds == 1:
-        return ""
-    return f" (world{'s' if len(worlds) > 1 else ''} {', '.join(map(str, worlds))})"
 
 
 def inverted_elements(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
