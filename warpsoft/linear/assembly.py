@@ -103,10 +103,8 @@ class CholmodFactor:
         self._place = None  # where the fill-reducing permutation P puts each DOF (read once, after a factorization)
 
     def factorize(self, values: np.ndarray) -> None:
-        """Refactorize for new values (all of ``A``'s, or the block's); raises ArithmeticError
-        when ``A`` is not positive definite."""
-        if len(values) == self.assembly.nnz and self.size != self.assembly.size:
-            values = values[self.values_slice]
+        """Refactorize for new values (of its block: ``assembly.values()[values_slice]``); raises
+        ArithmeticError when ``A`` is not positive definite."""
         self._matrix.V = self._cvxopt.matrix(values)
         if self._symbolic is None:
             self._symbolic = self._cholmod.symbolic(self._matrix, uplo="L")
