@@ -10,7 +10,7 @@ rows stay 0). The blocks are the rows of one ``(sum of block sizes, largest / W)
 
 The product streams each block down its columns, as the whole-model product does
 (``warped.py``): a thread sums ``A_b[j, i..i+W-1] U_w[j, :]`` over the ``size / S`` rows ``j`` of
-its segment, and the world's scale multiplies the sum. A block shared by several worlds is read
+its segment (the world's scale multiplies the segments' sum on the way out). A block shared by several worlds is read
 once for up to ``G`` of them: the thread keeps ``G`` worlds' sums (the block's bytes, which bound
 the product, are divided by ``G``; the operands of the ``G`` worlds are the same for the whole
 warp). A chunk of worlds whose columns have all converged (``scal[c, w, DONE]``) skips its
@@ -42,15 +42,16 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
     - ``rotate_in(r, q_rot, mask, node_row, node_world, first_row, tiled_col, tiled_stride, U, G)`` over
       ``(k, n)``: ``U[node_row[i] + a, c] = (mask_i Q_i^T r[c, i])_a``, or for a world ``w`` of a tiled
       block (``tiled_col[w] >= 0``) ``G[node_row[i] - first_row[w] + a, tiled_col[w] + c tiled_stride[w]]``;
-    - ``partial_product(A, U, row_chunk, chunk_first, chunk_worlds, first_row, block_row, size, scale, scal, P)``
+    - ``partial_product(A, U, row_chunk, chunk_first, chunk_worlds, first_row, block_row, size, scal, P)``
       over ``(S, T)``: the worlds are dealt into chunks of at most ``G`` worlds sharing a block
       (``chunk_worlds`` ``(chunks, G)``, -1 where a chunk has fewer); thread ``t`` serves the ``W``
       columns ``t - chunk_first[ch]`` of chunk ``ch = row_chunk[t]``'s block for each of its worlds:
-      ``P[s, c, first_row[w] + cols] = scale[w] sum_j A[block_row[w] + j, cols] U[first_row[w] + j, c]``
+      ``P[s, c, first_row[w] + cols] = sum_j A[block_row[w] + j, cols] U[first_row[w] + j, c]``
       over the segment ``s`` of the block's ``size`` rows. One load of the block serves ``G`` worlds;
     - ``rotate_out(P, Z, q_rot, mask, node_row, node_world, first_row, tiled_col, tiled_stride, scale, z)``
-      over ``(k, n)``: ``z[c, i] = mask_i Q_i sum_s P[s, c, node_row[i] + a]``, or for a world of a tiled
-      block ``mask_i Q_i scale[w] Z[...]`` at the place ``rotate_in`` took its operand.
+      over ``(k, n)``: ``z[c, i] = mask_i Q_i scale[w] sum_s P[s, c, node_row[i] + a]``, or for a world of a
+      tiled block ``Z[...]`` at the place ``rotate_in`` took its operand instead of the sum (both
+      products leave the world's scale, ``s_w`` of a shared block, to this last step).
     """
     key = (columns, dtype, segments, unroll, width, group)
     if key in _kernels:
@@ -86,8 +87,7 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
                                row_chunk: wp.array(dtype=wp.int32), chunk_first: wp.array(dtype=wp.int32),
                                chunk_worlds: wp.array2d(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
                                block_row: wp.array(dtype=wp.int32), size: wp.array(dtype=wp.int32),
-                               scale: wp.array(dtype=dtype), scal: wp.array3d(dtype=wp.float64),
-                               P: wp.array3d(dtype=dtype)):
+                               scal: wp.array3d(dtype=wp.float64), P: wp.array3d(dtype=dtype)):
         s, t = wp.tid()
         ch = row_chunk[t]
         w0 = chunk_worlds[ch, 0]
@@ -121,10 +121,9 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
         for g in range(G):
             w = chunk_worlds[ch, g]
             if w >= 0:
-                f = scale[w]
                 for c in range(K):
                     for v in range(W):
-                        P[s, c, u0[g] + W * i + v] = f * acc[g * W + v, c]
+                        P[s, c, u0[g] + W * i + v] = acc[g * W + v, c]
 
     @wp.kernel(module="unique")
     def blocks_rotate_out(P: wp.array3d(dtype=dtype), Z: wp.array2d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
@@ -136,15 +135,14 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
         w = node_world[i]
         row = node_row[i]
         y = wp.vec3d()
-        if tiled_col[w] >= 0:  # the tiled product left the world's sums unscaled
+        if tiled_col[w] >= 0:
             row = row - first_row[w]
             col = tiled_col[w] + c * tiled_stride[w]
-            y = wp.float64(scale[w]) * wp.vec3d(wp.float64(Z[row, col]), wp.float64(Z[row + 1, col]),
-                                                wp.float64(Z[row + 2, col]))
+            y = wp.vec3d(wp.float64(Z[row, col]), wp.float64(Z[row + 1, col]), wp.float64(Z[row + 2, col]))
         else:
             for s in range(S):
                 y += wp.vec3d(wp.float64(P[s, c, row]), wp.float64(P[s, c, row + 1]), wp.float64(P[s, c, row + 2]))
-        z[c, i] = wp.cw_mul(mask[i], q_rot[i] * y)
+        z[c, i] = wp.cw_mul(mask[i], q_rot[i] * (wp.float64(scale[w]) * y))
 
     _kernels[key] = (blocks_rotate_in, blocks_partial_product, blocks_rotate_out)
     return _kernels[key]

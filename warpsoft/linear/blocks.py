@@ -223,7 +223,7 @@ class WorldBlocks(WarpedFrames):
         (world in slot ``s``, column ``c``: ``col_b + c n + s``); its rows, ``size`` of them, are cut
         into tiles of ``TM`` rows."""
         d, (tm, tn, _) = self.op.model.device, TILE
-        col, stride = np.full(self.op.model.num_worlds, -1), np.ones(self.op.model.num_worlds)
+        col, stride = np.full(self.op.model.num_worlds, -1), np.ones(self.op.model.num_worlds, dtype=np.int64)
         tiles, region_size, region_col, region_worlds, world_list, region_first = [], [], [], [], [], []
         width = 0
         for g, b in enumerate(tiled):
@@ -240,12 +240,11 @@ class WorldBlocks(WarpedFrames):
             width += span
         rows = max(region_size, default=1)
 
-        def ints(values, dtype=wp.int32):
-            return wp.array(np.array(values, dtype=np.int32).reshape(-1, 4) if dtype == wp.vec4i
-                            else np.array(values, dtype=np.int32), dtype=dtype, device=d)
+        def ints(values):
+            return wp.array(np.array(values, dtype=np.int32), dtype=wp.int32, device=d)
 
         self.tiled_col, self.tiled_stride = ints(col), ints(stride)
-        self.tiles = ints(tiles, wp.vec4i) if tiles else None
+        self.tiles = wp.array(np.array(tiles, dtype=np.int32), dtype=wp.vec4i, device=d) if tiles else None
         self.regions = [ints(region_size), ints(region_col), ints(region_worlds), ints(region_first),
                         ints(world_list if world_list else [0])]
         self.g = wp.zeros((rows, max(width, 1)), dtype=self.dtype, device=d)
@@ -292,7 +291,7 @@ class WorldBlocks(WarpedFrames):
             row_chunk, chunk_first, chunk_worlds, threads = self.chunks[group]
             launch(product, (self.segments, threads),
                    inputs=[self._wide, self.u, row_chunk, chunk_first, chunk_worlds, self.first_row, self.block_row,
-                           self.size, self.scale, self._done], outputs=[self.partials], device=d)
+                           self.size, self._done], outputs=[self.partials], device=d)
         if self.tiles is not None:  # the tiled blocks
             wp.launch_tiled(kernels.tiled_kernel(self.dtype, *TILE), dim=(self.tiles.shape[0],),
                             inputs=[self.inverse, self.g, self.tiles, *self.regions, k, self._done],
