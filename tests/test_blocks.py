@@ -78,9 +78,11 @@ def test_proportional_worlds_share_a_block_and_step_as_alone(monkeypatch, tiled_
 
 def test_a_shared_block_serves_its_worlds_and_converged_ones_skip_it():
     """At rest the 1 and 3 MPa beams share a block: one thread serves both (a chunk), and the
-    product equals the whole model's host factor. A chunk skips its product only when all its
-    worlds are done: with world 0 done it still runs (world 1 is not); with worlds 0 and 1 done
-    their results stay as the previous application left them, and world 2 is updated."""
+    product equals the whole model's host factor. A converged column of a world is not touched:
+    its operand is not rotated in and its result not written out. A chunk still runs while one
+    of its worlds does: with world 0 done (its operand left from another right-hand side),
+    world 1, which shares its chunk, gets the fresh product; with worlds 0 and 1 done the chunk
+    is skipped, and world 2 is still fresh."""
     sim = ws.Simulator(ws.finalize([beam(), beam(3e6), beam(cells=16)]), solver="direct")
     sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
     pre = WorldBlocks(sim.operator, 2, "float64")
@@ -93,32 +95,30 @@ def test_a_shared_block_serves_its_worlds_and_converged_ones_skip_it():
     rng = np.random.default_rng(1)
     n = sim.model.num_nodes
     r1, r2 = (wp.array(rng.standard_normal((2, n, 3)), dtype=wp.vec3d) for _ in range(2))
-    z1, fresh, want = (wp.zeros((2, n), dtype=wp.vec3d) for _ in range(3))
+    fresh, want = (wp.zeros((2, n), dtype=wp.vec3d) for _ in range(2))
     pre.apply(r2, fresh)
     host.apply(r2, want)
     assert np.abs(fresh.numpy() - want.numpy()).max() < 1e-9 * np.abs(want.numpy()).max()
-    pre.apply(r1, z1)
-    first, second = sim.model.world_nodes(0), sim.model.world_nodes(1)
-    for done, stale in (([0], slice(0, 0)), ([0, 1], slice(first.start, second.stop))):
+    for done in ([0], [0, 1]):
+        scal.zero_()
+        pre.apply(r1, wp.zeros((2, n), dtype=wp.vec3d))  # every operand now r1's
         s = np.zeros((2, 3, NUM_SCALARS))
         s[:, done, DONE] = 1.0
         scal.assign(s)
-        z = wp.zeros((2, n), dtype=wp.vec3d)
+        z = wp.array(np.full((2, n, 3), 7.0), dtype=wp.vec3d)
         pre.apply(r2, z)
-        pre.apply(r1, wp.zeros_like(z))  # the partials left behind hold r1's product again
         got = z.numpy()
-        assert np.array_equal(got[:, stale], z1.numpy()[:, stale])
-        fresh_part = np.ones(n, dtype=bool)
-        fresh_part[stale] = False
-        assert np.array_equal(got[:, fresh_part], fresh.numpy()[:, fresh_part])
+        skipped = np.isin(sim.model.node_world_np, done)
+        assert np.all(got[:, skipped] == 7.0), done
+        assert np.array_equal(got[:, ~skipped], fresh.numpy()[:, ~skipped]), done
 
 
 def test_a_block_of_many_worlds_is_one_tiled_product_and_skips_converged_tiles():
     """Three beams at 1, 2 and 3 MPa share a block at rest; from ``tiled_from=2`` on, their
     product is one tiled matrix product (their columns side by side), while the two other
     designs stay streamed. Both equal the whole model's host factor for every column count, in
-    float64 and float32. A tile whose columns all belong to converged worlds is skipped: their
-    results stay as the previous application left them."""
+    float64 and float32. A converged world's result is not written: with one world of the tile
+    done, the tile still runs for the other two; with all three done it is skipped."""
     sim = ws.Simulator(ws.finalize([beam(), beam(2e6), beam(3e6), beam(cells=16), beam(1e6, 0.3)]), solver="direct")
     sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
     host = WarpedFactor(sim.operator, 3, "host")
@@ -139,16 +139,17 @@ def test_a_block_of_many_worlds_is_one_tiled_product_and_skips_converged_tiles()
             z = wp.zeros((k, n), dtype=wp.vec3d)
             pre.apply(r2[:k], z)
             assert np.abs(z.numpy() - want[:k]).max() < tol * np.abs(want).max(), (precision, k)
-    z1 = wp.zeros_like(r1)
-    pre.apply(r1, z1)
-    s = np.zeros((3, 5, NUM_SCALARS))
-    s[:, :3, DONE] = 1.0  # the tiled block's three worlds have converged
-    scal.assign(s)
-    z = wp.zeros_like(r2)
-    pre.apply(r2, z)
-    got, tiled = z.numpy(), slice(0, sim.model.world_nodes(2).stop)
-    assert np.array_equal(got[:, tiled], z1.numpy()[:, tiled])
-    assert np.abs(got[:, tiled.stop:] - want[:, tiled.stop:]).max() < 1e-5 * np.abs(want).max()
+    for done in ([0], [0, 1, 2]):  # one world of the tiled block (its tile still runs), then all three
+        scal.zero_()
+        pre.apply(r1, wp.zeros_like(r1))  # every operand now r1's
+        s = np.zeros((3, 5, NUM_SCALARS))
+        s[:, done, DONE] = 1.0
+        scal.assign(s)
+        z = wp.array(np.full((3, n, 3), 7.0), dtype=wp.vec3d)
+        pre.apply(r2, z)
+        got, skipped = z.numpy(), np.isin(sim.model.node_world_np, done)
+        assert np.all(got[:, skipped] == 7.0), done
+        assert np.abs(got[:, ~skipped] - want[:, ~skipped]).max() < 1e-5 * np.abs(want).max(), done
     with pytest.raises(ValueError, match="tiled_from must be at least 1, got 0"):
         WorldBlocks(sim.operator, 3, tiled_from=0)
 

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 import warp as wp
+from warpsoft.kernels.linear.cg import DONE, NUM_SCALARS
 
 import warpsoft as ws
 from warpsoft.linear import PCG, SparseDirect, WarpedFactor
@@ -39,6 +40,31 @@ def test_assembled_matrix_equals_the_matrix_free_operator():
             expect = (y.numpy()[c].reshape(-1) * sim.model.mask_np.reshape(-1))[free]
             assert np.abs(A @ x[c].reshape(-1)[free] - expect).max() < 1e-10 * np.abs(expect).max(), (k, c)
     assert abs(A - A.T).max() == 0.0
+
+
+@pytest.mark.parametrize("static", [False, True])
+def test_the_operator_skips_the_converged_columns_of_their_worlds(static):
+    """``A x`` told which columns of which worlds have converged leaves those entries of ``y``
+    as they were and computes every other one as the full product does: one column and three
+    (the two element kernels), with mass (dynamic) and without (quasi-static)."""
+    sim = ws.Simulator([bent_beam(static), bent_beam(static)], solver="pcg", preconditioner="blocks")
+    sim.step()
+    world = sim.model.node_world_np
+    x = np.random.default_rng(3).standard_normal((3, sim.model.num_nodes, 3))
+    for k in (1, 3):
+        xw = wp.array(x[:k], dtype=wp.vec3d)
+        full = wp.zeros_like(xw)
+        sim.operator.apply(xw, full)
+        scal = np.zeros((k, 2, NUM_SCALARS))
+        scal[0, 1, DONE] = 1.0  # column 0 of world 1
+        scal[k - 1, 0, DONE] = float(k > 1)  # and, of three, the last column of world 0
+        y = wp.array(np.full((k, sim.model.num_nodes, 3), 7.0), dtype=wp.vec3d)
+        sim.operator.apply(xw, y, wp.array(scal, dtype=wp.float64))
+        done = scal[:, :, DONE][:, world] > 0  # (k, nodes)
+        got = y.numpy()
+        assert done.any() and not done.all()
+        assert np.all(got[done] == 7.0), k
+        assert np.array_equal(got[~done], full.numpy()[~done]), k
 
 
 def test_cholmod_and_superlu_factorizations_agree():

@@ -14,6 +14,7 @@ Conventions (all kernels, float64):
 
 import warp as wp
 
+from ..linear.cg import column_done
 from .geometry import edge_matrix, polar_rotation, shape_gradient
 
 
@@ -76,11 +77,16 @@ def stiffness_product(
     lam: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
     scale: wp.float64,
+    world: wp.array(dtype=wp.int32),
+    done: wp.array3d(dtype=wp.float64),
     y: wp.array2d(dtype=wp.vec3d),
 ):
     """``y[c] += scale * K x[c]``, one thread per column ``c`` and element ``e``, with
-    ``K_e = R (V B^T C B) R^T`` (launched over ``(k, elements)``)."""
+    ``K_e = R (V B^T C B) R^T`` (launched over ``(k, elements)``); a converged column of the
+    element's world (``world[e]``, :func:`column_done`) is skipped."""
     c, e = wp.tid()
+    if column_done(done, c, world[e]):
+        return
     Di = dm_inv[e]
     add_element_product(x, c, tets[e], rot[e], shape_gradient(Di, 0), shape_gradient(Di, 1), shape_gradient(Di, 2),
                         shape_gradient(Di, 3), scale * volume[e], mu[e], lam[e], y)
@@ -96,11 +102,14 @@ def stiffness_product_columns(
     lam: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
     scale: wp.float64,
+    world: wp.array(dtype=wp.int32),
+    done: wp.array3d(dtype=wp.float64),
     y: wp.array2d(dtype=wp.vec3d),
 ):
     """:func:`stiffness_product` with one thread per element for all the columns of ``x``
     (launched over the elements): the element's data are read, and its gradients formed, once."""
     e = wp.tid()
+    w = world[e]
     t = tets[e]
     Di = dm_inv[e]
     R = rot[e]
@@ -112,7 +121,8 @@ def stiffness_product_columns(
     mu_e = mu[e]
     lam_e = lam[e]
     for c in range(x.shape[0]):
-        add_element_product(x, c, t, R, g0, g1, g2, g3, s, mu_e, lam_e, y)
+        if not column_done(done, c, w):
+            add_element_product(x, c, t, R, g0, g1, g2, g3, s, mu_e, lam_e, y)
 
 
 @wp.func

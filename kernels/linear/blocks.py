@@ -39,7 +39,7 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
     per thread, ``W = width`` numbers per load, and up to ``G = group`` worlds of one block served by
     each thread (compile-time constants, hence cached per key).
 
-    - ``rotate_in(r, q_rot, mask, node_row, node_world, first_row, tiled_col, tiled_stride, U, G)`` over
+    - ``rotate_in(r, q_rot, mask, node_row, node_world, first_row, tiled_col, tiled_stride, scal, U, G)`` over
       ``(k, n)``: ``U[node_row[i] + a, c] = (mask_i Q_i^T r[c, i])_a``, or for a world ``w`` of a tiled
       block (``tiled_col[w] >= 0``) ``G[node_row[i] - first_row[w] + a, tiled_col[w] + c tiled_stride[w]]``;
     - ``partial_product(A, U, row_chunk, chunk_first, chunk_worlds, first_row, block_row, size, scal, P)``
@@ -48,7 +48,7 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
       columns ``t - chunk_first[ch]`` of chunk ``ch = row_chunk[t]``'s block for each of its worlds:
       ``P[s, c, first_row[w] + cols] = sum_j A[block_row[w] + j, cols] U[first_row[w] + j, c]``
       over the segment ``s`` of the block's ``size`` rows. One load of the block serves ``G`` worlds;
-    - ``rotate_out(P, Z, q_rot, mask, node_row, node_world, first_row, tiled_col, tiled_stride, scale, z)``
+    - ``rotate_out(P, Z, q_rot, mask, node_row, node_world, first_row, tiled_col, tiled_stride, scale, scal, z)``
       over ``(k, n)``: ``z[c, i] = mask_i Q_i scale[w] sum_s P[s, c, node_row[i] + a]``, or for a world of a
       tiled block ``Z[...]`` at the place ``rotate_in`` took its operand instead of the sum (both
       products leave the world's scale, ``s_w`` of a shared block, to this last step).
@@ -66,10 +66,12 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
                          mask: wp.array(dtype=wp.vec3d), node_row: wp.array(dtype=wp.int32),
                          node_world: wp.array(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
                          tiled_col: wp.array(dtype=wp.int32), tiled_stride: wp.array(dtype=wp.int32),
-                         U: wp.array2d(dtype=dtype), G: wp.array2d(dtype=dtype)):
+                         scal: wp.array3d(dtype=wp.float64), U: wp.array2d(dtype=dtype), G: wp.array2d(dtype=dtype)):
         c, i = wp.tid()
-        v = wp.cw_mul(mask[i], wp.transpose(q_rot[i]) * r[c, i])
         w = node_world[i]
+        if scal[c, w, DONE] != wp.float64(0.0):
+            return  # converged: its operand is not used (the products skip it or leave its result unread)
+        v = wp.cw_mul(mask[i], wp.transpose(q_rot[i]) * r[c, i])
         row = node_row[i]
         if tiled_col[w] >= 0:  # a world of a tiled block: its column of G, rows local to the world
             row = row - first_row[w]
@@ -130,9 +132,12 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
                           mask: wp.array(dtype=wp.vec3d), node_row: wp.array(dtype=wp.int32),
                           node_world: wp.array(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
                           tiled_col: wp.array(dtype=wp.int32), tiled_stride: wp.array(dtype=wp.int32),
-                          scale: wp.array(dtype=dtype), z: wp.array2d(dtype=wp.vec3d)):
+                          scale: wp.array(dtype=dtype), scal: wp.array3d(dtype=wp.float64),
+                          z: wp.array2d(dtype=wp.vec3d)):
         c, i = wp.tid()
         w = node_world[i]
+        if scal[c, w, DONE] != wp.float64(0.0):
+            return  # converged: its z is not used
         row = node_row[i]
         y = wp.vec3d()
         if tiled_col[w] >= 0:

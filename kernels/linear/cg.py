@@ -23,12 +23,33 @@ ITS = wp.constant(8)  # iterations this column of this world needed (pcg)
 NUM_SCALARS = 9
 
 
+@wp.func
+def column_done(done: wp.array3d(dtype=wp.float64), c: int, w: int) -> bool:
+    """Whether column ``c`` of world ``w`` has converged, by the CG scalars ``done`` (``(k, worlds,
+    NUM_SCALARS)``); never when ``done`` is None (a product that skips nothing)."""
+    if done.shape[0] == 0:
+        return False
+    return done[c, w, DONE] != wp.float64(0.0)
+
+
 @wp.kernel
 def mass_product(x: wp.array2d(dtype=wp.vec3d), mass: wp.array(dtype=wp.float64), scale: wp.float64,
+                 world: wp.array(dtype=wp.int32), done: wp.array3d(dtype=wp.float64),
                  y: wp.array2d(dtype=wp.vec3d)):
-    """``y = scale * M x`` with a lumped mass (kg); starts a matrix-free product."""
+    """``y = scale * M x`` with a lumped mass (kg); starts a matrix-free product. A converged
+    column of a world (:func:`column_done`) is left as it was."""
     c, i = wp.tid()
+    if column_done(done, c, world[i]):
+        return
     y[c, i] = (scale * mass[i]) * x[c, i]
+
+
+@wp.kernel
+def zero_columns(world: wp.array(dtype=wp.int32), done: wp.array3d(dtype=wp.float64), y: wp.array2d(dtype=wp.vec3d)):
+    """``y = 0`` but in the converged columns of their worlds (:func:`column_done`)."""
+    c, i = wp.tid()
+    if not column_done(done, c, world[i]):
+        y[c, i] = wp.vec3d()
 
 
 @wp.kernel

@@ -57,6 +57,15 @@ def block_add(value: wp.float64, lane: int, uniform: bool, scal: wp.array3d(dtyp
         wp.atomic_add(scal, c, w, slot, total[0])
 
 
+@wp.func
+def first_running(i: int, i1: int, uniform: bool, scal: wp.array3d(dtype=wp.float64), c: int, w: int) -> int:
+    """A thread's first node ``i``, or ``i1`` (none) when its block is one world's and that
+    column of the world has converged: the iteration's kernels skip converged columns."""
+    if uniform and scal[c, w, DONE] != wp.float64(0.0):
+        return i1
+    return i
+
+
 @wp.kernel
 def pcg_residual(
     b: wp.array2d(dtype=wp.vec3d),
@@ -107,12 +116,15 @@ def pcg_begin(r: wp.array2d(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d), x: w
 @wp.kernel
 def pcg_curvature(p: wp.array2d(dtype=wp.vec3d), ap: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d),
                   world: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64)):
-    """Project ``A p`` and accumulate ``p . A p``."""
+    """Project ``A p`` and accumulate ``p . A p`` (not in converged columns)."""
     c, blk, lane = wp.tid()
     i0, i1, w, uniform = block_world(blk, p.shape[1], world)
     pap = wp.float64(0.0)
-    i = i0 + lane
+    i = first_running(i0 + lane, i1, uniform, scal, c, w)
     while i < i1:
+        if scal[c, world[i], DONE] != wp.float64(0.0):
+            i += wp.block_dim()
+            continue
         api = wp.cw_mul(mask[i], ap[c, i])
         ap[c, i] = api
         pap = node_add(uniform, pap, wp.dot(p[c, i], api), scal, c, world[i], PAP)
@@ -131,12 +143,16 @@ def step_length(scal: wp.array3d(dtype=wp.float64), c: int, w: int) -> wp.float6
 @wp.kernel
 def pcg_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d),
                ap: wp.array2d(dtype=wp.vec3d), world: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64)):
-    """``x += alpha p``, ``r -= alpha A p``; accumulates ``r.r``."""
+    """``x += alpha p``, ``r -= alpha A p``; accumulates ``r.r`` (not in converged columns: their
+    ``x`` and ``r`` stay, and :func:`pcg_scalars` keeps their last ``r.r``)."""
     c, blk, lane = wp.tid()
     i0, i1, w, uniform = block_world(blk, r.shape[1], world)
     rr = wp.float64(0.0)
-    i = i0 + lane
+    i = first_running(i0 + lane, i1, uniform, scal, c, w)
     while i < i1:
+        if scal[c, world[i], DONE] != wp.float64(0.0):
+            i += wp.block_dim()
+            continue
         alpha = step_length(scal, c, world[i])
         x[c, i] = x[c, i] + alpha * p[c, i]
         ri = r[c, i] - alpha * ap[c, i]
@@ -149,12 +165,15 @@ def pcg_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: 
 @wp.kernel
 def pcg_rz(r: wp.array2d(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d), world: wp.array(dtype=wp.int32),
            scal: wp.array3d(dtype=wp.float64)):
-    """Accumulates the new ``r.z``."""
+    """Accumulates the new ``r.z`` (not in converged columns)."""
     c, blk, lane = wp.tid()
     i0, i1, w, uniform = block_world(blk, r.shape[1], world)
     rz = wp.float64(0.0)
-    i = i0 + lane
+    i = first_running(i0 + lane, i1, uniform, scal, c, w)
     while i < i1:
+        if scal[c, world[i], DONE] != wp.float64(0.0):
+            i += wp.block_dim()
+            continue
         rz = node_add(uniform, rz, wp.dot(r[c, i], z[c, i]), scal, c, world[i], RZ_NEW)
         i += wp.block_dim()
     block_add(rz, lane, uniform, scal, c, w, RZ_NEW)
@@ -169,6 +188,8 @@ def pcg_direction(z: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d), 
     if c == 0 and i == 0:
         active[0] = 0
     w = world[i]
+    if scal[c, w, DONE] != wp.float64(0.0):
+        return  # converged: its p is no longer used
     beta = wp.float64(0.0)
     if scal[c, w, RZ] > wp.float64(0.0):
         beta = scal[c, w, RZ_NEW] / scal[c, w, RZ]
@@ -185,13 +206,13 @@ def pcg_scalars(scal: wp.array3d(dtype=wp.float64), tolerance: wp.float64, max_i
     NaN or inf stops and raises ``info[NONFINITE]``."""
     c, w = wp.tid()
     if advance != 0:
-        scal[c, w, RZ] = scal[c, w, RZ_NEW]
-        scal[c, w, R2_LAST] = scal[c, w, R2]
+        if scal[c, w, DONE] == wp.float64(0.0):  # a converged column keeps its last r.z and r.r
+            scal[c, w, RZ] = scal[c, w, RZ_NEW]
+            scal[c, w, R2_LAST] = scal[c, w, R2]
+            scal[c, w, ITS] = scal[c, w, ITS] + wp.float64(1.0)
         scal[c, w, RZ_NEW] = wp.float64(0.0)
         scal[c, w, PAP] = wp.float64(0.0)
         scal[c, w, R2] = wp.float64(0.0)
-        if scal[c, w, DONE] == wp.float64(0.0):
-            scal[c, w, ITS] = scal[c, w, ITS] + wp.float64(1.0)
     b2 = scal[c, w, B2]
     r2 = scal[c, w, R2_LAST]
     its = wp.int32(scal[c, w, ITS])

@@ -44,15 +44,15 @@ class Corotational:
         launch(kernels.corotational_forces, m.num_elements, inputs=[q, m.tets, *self._material()],
                outputs=[rot, force], device=m.device)
 
-    def apply(self, x: wp.array, y: wp.array, rot: wp.array, scale: float) -> None:
-        """``y[c] += scale K x[c]`` for ``(k, n)`` vec3d ``x`` and ``y`` (N per m of ``x``)."""
+    def apply(self, x: wp.array, y: wp.array, rot: wp.array, scale: float, done: wp.array | None = None) -> None:
+        """``y[c] += scale K x[c]`` for ``(k, n)`` vec3d ``x`` and ``y`` (N per m of ``x``). ``done``:
+        CG scalars ``(k, worlds, slots)``; a column of a world they mark converged is skipped."""
         m = self.model
+        inputs = [x, m.tets, *self._material(), rot, scale, m.elem_world, done]
         if x.shape[0] > 1 and (m.device.is_cpu or m.num_elements >= ELEMENT_MAJOR_FROM):
-            launch(kernels.stiffness_product_columns, m.num_elements,
-                   inputs=[x, m.tets, *self._material(), rot, scale], outputs=[y], device=m.device)
+            launch(kernels.stiffness_product_columns, m.num_elements, inputs=inputs, outputs=[y], device=m.device)
             return
-        launch(kernels.stiffness_product, (x.shape[0], m.num_elements),
-               inputs=[x, m.tets, *self._material(), rot, scale], outputs=[y], device=m.device)
+        launch(kernels.stiffness_product, (x.shape[0], m.num_elements), inputs=inputs, outputs=[y], device=m.device)
 
     def diagonal(self, rot: wp.array, diag: wp.array) -> None:
         """Accumulate the 3x3 diagonal blocks of ``K`` (N/m) per node into ``diag`` ``(n,)`` mat33d."""

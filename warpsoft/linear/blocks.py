@@ -286,7 +286,8 @@ class WorldBlocks(WarpedFrames):
         group = max((g for g in self.chunks if g == 1 or g * WIDTH * k <= SUMS), default=1)
         rotate_in, product, rotate_out = kernels.block_kernels(k, self.dtype, self.segments, UNROLL, WIDTH, group)
         layout = [self.node_row, self.node_world, self.first_row, self.tiled_col, self.tiled_stride]
-        launch(rotate_in, r.shape, inputs=[r, self.q_rot, m.mask, *layout], outputs=[self.u, self.g], device=d)
+        launch(rotate_in, r.shape, inputs=[r, self.q_rot, m.mask, *layout, self._done], outputs=[self.u, self.g],
+               device=d)
         if self.chunks:  # the streamed blocks
             row_chunk, chunk_first, chunk_worlds, threads = self.chunks[group]
             launch(product, (self.segments, threads),
@@ -296,8 +297,8 @@ class WorldBlocks(WarpedFrames):
             wp.launch_tiled(kernels.tiled_kernel(self.dtype, *TILE), dim=(self.tiles.shape[0],),
                             inputs=[self.inverse, self.g, self.tiles, *self.regions, k, self._done],
                             outputs=[self.g_out], block_dim=TILE_THREADS, device=d)
-        launch(rotate_out, r.shape, inputs=[self.partials, self.g_out, self.q_rot, m.mask, *layout, self.scale],
-               outputs=[z], device=d)
+        launch(rotate_out, r.shape, inputs=[self.partials, self.g_out, self.q_rot, m.mask, *layout, self.scale,
+                                            self._done], outputs=[z], device=d)
 
 
 def _dense_entries(tets: np.ndarray, nodes: int) -> np.ndarray:

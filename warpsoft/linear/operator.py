@@ -30,11 +30,16 @@ class SystemOperator:
             raise ValueError("SystemOperator: mass_scale != 0 in a model without mass")
         self.mass_scale, self.stiffness_scale = float(mass_scale), float(stiffness_scale)
 
-    def apply(self, x: wp.array, y: wp.array) -> None:
+    def apply(self, x: wp.array, y: wp.array, done: wp.array | None = None) -> None:
+        """``y = A x``. ``done``: a solver's CG scalars ``(k, worlds, slots)``; the columns of the
+        worlds they mark converged are skipped and keep what ``y`` held (a converged world stops
+        costing work)."""
         m = self.model
         if self.mass_scale != 0.0:
-            launch(linalg.mass_product, x.shape, inputs=[x, m.mass, self.mass_scale], outputs=[y],
-                   device=m.device)
-        else:
+            launch(linalg.mass_product, x.shape, inputs=[x, m.mass, self.mass_scale, m.node_world, done],
+                   outputs=[y], device=m.device)
+        elif done is None:
             y.zero_()
-        self.elastic.apply(x, y, self.rot, self.stiffness_scale)
+        else:
+            launch(linalg.zero_columns, x.shape, inputs=[m.node_world, done], outputs=[y], device=m.device)
+        self.elastic.apply(x, y, self.rot, self.stiffness_scale, done)

@@ -181,7 +181,7 @@ class PCG:
         m, d = self.op.model, self.op.model.device
         k, n = x.shape
         r, z, p, ap, scal = self.r[:k], self.z[:k], self.p[:k], self.ap[:k], self.scal[:k]
-        self.op.apply(p, ap)
+        self.op.apply(p, ap, scal)  # a converged column of a world is skipped, here and below
         kernels.launch_nodes(kernels.pcg_curvature, k, n, [p, ap, m.mask, m.node_world, scal], d)
         kernels.launch_nodes(kernels.pcg_update, k, n, [x, r, p, ap, m.node_world, scal], d)
         self.precond.apply(r, z)
