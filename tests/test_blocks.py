@@ -113,12 +113,13 @@ def test_a_shared_block_serves_its_worlds_and_converged_ones_skip_it():
         assert np.array_equal(got[:, ~skipped], fresh.numpy()[:, ~skipped]), done
 
 
-def test_a_block_of_many_worlds_is_one_tiled_product_and_skips_converged_tiles():
+def test_a_block_of_many_worlds_is_one_tiled_product_of_its_running_columns():
     """Three beams at 1, 2 and 3 MPa share a block at rest; from ``tiled_from=2`` on, their
     product is one tiled matrix product (their columns side by side), while the two other
     designs stay streamed. Both equal the whole model's host factor for every column count, in
-    float64 and float32. A converged world's result is not written: with one world of the tile
-    done, the tile still runs for the other two; with all three done it is skipped."""
+    float64 and float32. A converged world's result is not written, and the columns of the
+    others are packed at the front of the block's region: with some of the three done the
+    others' products are fresh; with all three done no tile runs."""
     sim = ws.Simulator(ws.finalize([beam(), beam(2e6), beam(3e6), beam(cells=16), beam(1e6, 0.3)]), solver="direct")
     sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
     host = WarpedFactor(sim.operator, 3, "host")
@@ -139,7 +140,7 @@ def test_a_block_of_many_worlds_is_one_tiled_product_and_skips_converged_tiles()
             z = wp.zeros((k, n), dtype=wp.vec3d)
             pre.apply(r2[:k], z)
             assert np.abs(z.numpy() - want[:k]).max() < tol * np.abs(want).max(), (precision, k)
-    for done in ([0], [0, 1, 2]):  # one world of the tiled block (its tile still runs), then all three
+    for done in ([1], [0, 2], [0, 1, 2]):  # worlds of the tiled block: the others' columns move to the front
         scal.zero_()
         pre.apply(r1, wp.zeros_like(r1))  # every operand now r1's
         s = np.zeros((3, 5, NUM_SCALARS))
@@ -150,6 +151,7 @@ def test_a_block_of_many_worlds_is_one_tiled_product_and_skips_converged_tiles()
         got, skipped = z.numpy(), np.isin(sim.model.node_world_np, done)
         assert np.all(got[:, skipped] == 7.0), done
         assert np.abs(got[:, ~skipped] - want[:, ~skipped]).max() < 1e-5 * np.abs(want).max(), done
+        assert pre.count.numpy()[0] == 3 * (3 - len(done))  # the region's columns in use: the running ones
     with pytest.raises(ValueError, match="tiled_from must be at least 1, got 0"):
         WorldBlocks(sim.operator, 3, tiled_from=0)
 

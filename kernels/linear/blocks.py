@@ -19,10 +19,12 @@ costing the dense product's bandwidth.
 
 A block shared by many worlds is a matrix product instead, ``Z_b = A_b^-1 [U_w1 .. U_wn]``
 (:func:`tiled_kernel`): its worlds' operands are the columns of one ``(size, k n)`` region of a
-second flat array ``G`` (column ``c n + slot`` for the world in slot ``slot``), and the product
-runs in tiles through shared memory (Warp's ``tile_matmul``), so each number of the block loaded
-serves a whole tile of columns. Streamed, a thread serves at most ``G = 8`` worlds and reloads its
-operands for each; tiled, the product is bound by arithmetic, not by loads.
+second flat array ``G``, and the product runs in tiles through shared memory (Warp's
+``tile_matmul``), so each number of the block loaded serves a whole tile of columns. Streamed, a
+thread serves at most ``G = 8`` worlds and reloads its operands for each; tiled, the product is
+bound by arithmetic, not by loads. The columns still running are packed at the front of their
+region at each application (:func:`pack_tiled_columns`), and only the tiles that hold them run:
+the product's cost follows the worlds that have not converged, in whatever order they converge.
 """
 
 import warp as wp
@@ -39,16 +41,17 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
     per thread, ``W = width`` numbers per load, and up to ``G = group`` worlds of one block served by
     each thread (compile-time constants, hence cached per key).
 
-    - ``rotate_in(r, q_rot, mask, node_row, node_world, first_row, tiled_col, tiled_stride, scal, U, G)`` over
+    - ``rotate_in(r, q_rot, mask, node_row, node_world, first_row, tiled, tiled_col, scal, U, G)`` over
       ``(k, n)``: ``U[node_row[i] + a, c] = (mask_i Q_i^T r[c, i])_a``, or for a world ``w`` of a tiled
-      block (``tiled_col[w] >= 0``) ``G[node_row[i] - first_row[w] + a, tiled_col[w] + c tiled_stride[w]]``;
+      block (``tiled[w] != 0``) ``G[node_row[i] - first_row[w] + a, tiled_col[c, w]]`` (the column
+      :func:`pack_tiled_columns` gave it); a converged column (``scal[c, w, DONE]``) is skipped;
     - ``partial_product(A, U, row_chunk, chunk_first, chunk_worlds, first_row, block_row, size, scal, P)``
       over ``(S, T)``: the worlds are dealt into chunks of at most ``G`` worlds sharing a block
       (``chunk_worlds`` ``(chunks, G)``, -1 where a chunk has fewer); thread ``t`` serves the ``W``
       columns ``t - chunk_first[ch]`` of chunk ``ch = row_chunk[t]``'s block for each of its worlds:
       ``P[s, c, first_row[w] + cols] = sum_j A[block_row[w] + j, cols] U[first_row[w] + j, c]``
       over the segment ``s`` of the block's ``size`` rows. One load of the block serves ``G`` worlds;
-    - ``rotate_out(P, Z, q_rot, mask, node_row, node_world, first_row, tiled_col, tiled_stride, scale, scal, z)``
+    - ``rotate_out(P, Z, q_rot, mask, node_row, node_world, first_row, tiled, tiled_col, scale, scal, z)``
       over ``(k, n)``: ``z[c, i] = mask_i Q_i scale[w] sum_s P[s, c, node_row[i] + a]``, or for a world of a
       tiled block ``Z[...]`` at the place ``rotate_in`` took its operand instead of the sum (both
       products leave the world's scale, ``s_w`` of a shared block, to this last step).
@@ -65,7 +68,7 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
     def blocks_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
                          mask: wp.array(dtype=wp.vec3d), node_row: wp.array(dtype=wp.int32),
                          node_world: wp.array(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
-                         tiled_col: wp.array(dtype=wp.int32), tiled_stride: wp.array(dtype=wp.int32),
+                         tiled: wp.array(dtype=wp.int32), tiled_col: wp.array2d(dtype=wp.int32),
                          scal: wp.array3d(dtype=wp.float64), U: wp.array2d(dtype=dtype), G: wp.array2d(dtype=dtype)):
         c, i = wp.tid()
         w = node_world[i]
@@ -73,9 +76,9 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
             return  # converged: its operand is not used (the products skip it or leave its result unread)
         v = wp.cw_mul(mask[i], wp.transpose(q_rot[i]) * r[c, i])
         row = node_row[i]
-        if tiled_col[w] >= 0:  # a world of a tiled block: its column of G, rows local to the world
+        if tiled[w] != 0:  # a world of a tiled block: its column of G, rows local to the world
             row = row - first_row[w]
-            col = tiled_col[w] + c * tiled_stride[w]
+            col = tiled_col[c, w]
             G[row, col] = dtype(v[0])
             G[row + 1, col] = dtype(v[1])
             G[row + 2, col] = dtype(v[2])
@@ -131,7 +134,7 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
     def blocks_rotate_out(P: wp.array3d(dtype=dtype), Z: wp.array2d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
                           mask: wp.array(dtype=wp.vec3d), node_row: wp.array(dtype=wp.int32),
                           node_world: wp.array(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
-                          tiled_col: wp.array(dtype=wp.int32), tiled_stride: wp.array(dtype=wp.int32),
+                          tiled: wp.array(dtype=wp.int32), tiled_col: wp.array2d(dtype=wp.int32),
                           scale: wp.array(dtype=dtype), scal: wp.array3d(dtype=wp.float64),
                           z: wp.array2d(dtype=wp.vec3d)):
         c, i = wp.tid()
@@ -140,9 +143,9 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
             return  # converged: its z is not used
         row = node_row[i]
         y = wp.vec3d()
-        if tiled_col[w] >= 0:
+        if tiled[w] != 0:
             row = row - first_row[w]
-            col = tiled_col[w] + c * tiled_stride[w]
+            col = tiled_col[c, w]
             y = wp.vec3d(wp.float64(Z[row, col]), wp.float64(Z[row + 1, col]), wp.float64(Z[row + 2, col]))
         else:
             for s in range(S):
@@ -153,21 +156,32 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
     return _kernels[key]
 
 
+@wp.kernel
+def pack_tiled_columns(world_list: wp.array(dtype=wp.int32), list_region: wp.array(dtype=wp.int32),
+                       region_col: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
+                       count: wp.array(dtype=wp.int32), tiled_col: wp.array2d(dtype=wp.int32)):
+    """Launched over ``(k, tiled worlds)``, ``count`` zeroed before: column ``c`` of world
+    ``w = world_list[j]``, when it has not converged, takes the next free column of its region
+    ``g = list_region[j]``: ``tiled_col[c, w] = region_col[g] + count[g]++``. The order within a
+    region is that of the atomics; a column's product does not depend on where it sits."""
+    c, j = wp.tid()
+    w = world_list[j]
+    if scal[c, w, DONE] == wp.float64(0.0):
+        g = list_region[j]
+        tiled_col[c, w] = region_col[g] + wp.atomic_add(count, g, 1)
+
+
 def tiled_kernel(dtype, tile_m: int, tile_n: int, tile_k: int):
     """The product of the blocks shared by many worlds, in ``(TM, TN)`` tiles of the result over
     ``TK``-deep slices (compile-time constants, hence cached per key); launched tiled over the
-    tile list:
-    ``tiled_product(A, G, tiles, region_size, region_col, region_worlds, region_first, world_list,
-    columns, scal, Z)``.
+    tile list: ``tiled_product(A, G, tiles, region_size, region_col, count, Z)``.
 
     Tile ``t`` is ``tiles[t] = (a0, r0, c0, g)``: rows ``r0 .. r0 + TM`` of region ``g``'s block,
-    which starts at row ``a0 - r0`` of ``A``; columns ``c0 .. c0 + TN`` of ``G`` and ``Z``.
-    Region ``g`` holds the ``n = region_worlds[g]`` worlds of one block, its columns starting at
-    ``region_col[g]``: its column ``c n + slot`` is column ``c`` of world
-    ``world_list[region_first[g] + slot]``. It computes
+    which starts at row ``a0 - r0`` of ``A``; columns ``c0 .. c0 + TN`` of ``G`` and ``Z``. Region
+    ``g``'s columns start at ``region_col[g]``, the first ``count[g]`` of them in use
+    (:func:`pack_tiled_columns`). It computes
     ``Z[r0:r0+TM, c0:c0+TN] = sum_j A[a0:a0+TM, j:j+TK] G[j:j+TK, c0:c0+TN]`` over the block's
-    ``region_size[g]`` rows, for the first ``columns`` columns of each world; a tile whose
-    columns are all past those, or all of converged worlds, is skipped.
+    ``region_size[g]`` rows; a tile whose columns are all past those in use is skipped.
     """
     key = ("tiled", dtype, tile_m, tile_n, tile_k)
     if key in _kernels:
@@ -177,26 +191,12 @@ def tiled_kernel(dtype, tile_m: int, tile_n: int, tile_k: int):
     @wp.kernel(module="unique")
     def blocks_tiled_product(A: wp.array2d(dtype=dtype), G: wp.array2d(dtype=dtype), tiles: wp.array(dtype=wp.vec4i),
                              region_size: wp.array(dtype=wp.int32), region_col: wp.array(dtype=wp.int32),
-                             region_worlds: wp.array(dtype=wp.int32), region_first: wp.array(dtype=wp.int32),
-                             world_list: wp.array(dtype=wp.int32), columns: wp.int32,
-                             scal: wp.array3d(dtype=wp.float64), Z: wp.array2d(dtype=dtype)):
+                             count: wp.array(dtype=wp.int32), Z: wp.array2d(dtype=dtype)):
         t = wp.tid()
         tile = tiles[t]
         g = tile[3]
-        n = region_worlds[g]
-        first = tile[2] - region_col[g]  # this tile's first (column, slot) of its region: c n + slot
-        if first >= columns * n:
+        if tile[2] - region_col[g] >= count[g]:
             return  # every column of the tile is past those in use
-        running = wp.int32(0)
-        for j in range(TN):
-            q = first + j
-            if q < columns * n:
-                c = q // n
-                w = world_list[region_first[g] + q - c * n]
-                if scal[c, w, DONE] == wp.float64(0.0):
-                    running = 1
-        if running == 0:
-            return  # every column of the tile has converged
         acc = wp.tile_zeros(shape=(TM, TN), dtype=dtype)
         for j in range(region_size[g] // TK):
             a = wp.tile_load(A, shape=(TM, TK), offset=(tile[0], j * TK))

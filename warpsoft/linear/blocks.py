@@ -219,21 +219,21 @@ class WorldBlocks(WarpedFrames):
 
     def _tile(self, tiled: list[int], lists: list[np.ndarray]) -> None:
         """The layout of the tiled product for the blocks ``tiled`` (``lists[b]``: block ``b``'s
-        worlds): block ``b``'s ``n`` worlds take ``k n`` columns of ``G``, padded to whole tiles
-        (world in slot ``s``, column ``c``: ``col_b + c n + s``); its rows, ``size`` of them, are cut
-        into tiles of ``TM`` rows."""
-        d, (tm, tn, _) = self.op.model.device, TILE
-        col, stride = np.full(self.op.model.num_worlds, -1), np.ones(self.op.model.num_worlds, dtype=np.int64)
-        tiles, region_size, region_col, region_worlds, world_list, region_first = [], [], [], [], [], []
+        worlds): block ``b``'s ``n`` worlds own a region of ``k n`` columns of ``G``, padded to whole
+        tiles (the columns still running are packed at its front at each application); its rows,
+        ``size`` of them, are cut into tiles of ``TM`` rows."""
+        m, (tm, tn, _) = self.op.model, TILE
+        d = m.device
+        flag = np.zeros(m.num_worlds, dtype=np.int32)
+        tiles, region_size, region_col, world_list, list_region = [], [], [], [], []
         width = 0
         for g, b in enumerate(tiled):
             ws, size = lists[b], int(self.size_np[lists[b][0]])
-            col[ws], stride[ws] = width + np.arange(len(ws)), len(ws)
+            flag[ws] = 1
             region_size.append(size)
             region_col.append(width)
-            region_worlds.append(len(ws))
-            region_first.append(len(world_list))
             world_list.extend(ws.tolist())
+            list_region.extend([g] * len(ws))
             span = -(-self.columns * len(ws) // tn) * tn
             tiles += [(int(self.block_first[b]) + r, r, width + c, g) for r in range(0, size, tm)
                       for c in range(0, span, tn)]
@@ -241,12 +241,13 @@ class WorldBlocks(WarpedFrames):
         rows = max(region_size, default=1)
 
         def ints(values):
-            return wp.array(np.array(values, dtype=np.int32), dtype=wp.int32, device=d)
+            return wp.array(np.array(values if len(values) else [0], dtype=np.int32), dtype=wp.int32, device=d)
 
-        self.tiled_col, self.tiled_stride = ints(col), ints(stride)
+        self.tiled, self.tiled_col = ints(flag), wp.zeros((self.columns, m.num_worlds), dtype=wp.int32, device=d)
         self.tiles = wp.array(np.array(tiles, dtype=np.int32), dtype=wp.vec4i, device=d) if tiles else None
-        self.regions = [ints(region_size), ints(region_col), ints(region_worlds), ints(region_first),
-                        ints(world_list if world_list else [0])]
+        self.world_list, self.list_region = ints(world_list), ints(list_region)
+        self.region_size, self.region_col = ints(region_size), ints(region_col)
+        self.count = wp.zeros(max(len(tiled), 1), dtype=wp.int32, device=d)  # each region's columns in use
         self.g = wp.zeros((rows, max(width, 1)), dtype=self.dtype, device=d)
         self.g_out = wp.zeros_like(self.g)
         self.tiled_worlds = len(world_list)
@@ -285,7 +286,12 @@ class WorldBlocks(WarpedFrames):
         k = r.shape[0]
         group = max((g for g in self.chunks if g == 1 or g * WIDTH * k <= SUMS), default=1)
         rotate_in, product, rotate_out = kernels.block_kernels(k, self.dtype, self.segments, UNROLL, WIDTH, group)
-        layout = [self.node_row, self.node_world, self.first_row, self.tiled_col, self.tiled_stride]
+        layout = [self.node_row, self.node_world, self.first_row, self.tiled, self.tiled_col]
+        if self.tiles is not None:  # the tiled blocks' columns still running, packed at their regions' front
+            self.count.zero_()
+            launch(kernels.pack_tiled_columns, (k, self.tiled_worlds),
+                   inputs=[self.world_list, self.list_region, self.region_col, self._done],
+                   outputs=[self.count, self.tiled_col], device=d)
         launch(rotate_in, r.shape, inputs=[r, self.q_rot, m.mask, *layout, self._done], outputs=[self.u, self.g],
                device=d)
         if self.chunks:  # the streamed blocks
@@ -295,7 +301,7 @@ class WorldBlocks(WarpedFrames):
                            self.size, self._done], outputs=[self.partials], device=d)
         if self.tiles is not None:  # the tiled blocks
             wp.launch_tiled(kernels.tiled_kernel(self.dtype, *TILE), dim=(self.tiles.shape[0],),
-                            inputs=[self.inverse, self.g, self.tiles, *self.regions, k, self._done],
+                            inputs=[self.inverse, self.g, self.tiles, self.region_size, self.region_col, self.count],
                             outputs=[self.g_out], block_dim=TILE_THREADS, device=d)
         launch(rotate_out, r.shape, inputs=[self.partials, self.g_out, self.q_rot, m.mask, *layout, self.scale,
                                             self._done], outputs=[z], device=d)
