@@ -219,6 +219,8 @@ class Simulator:
             self.contact_set = ContactSet(self)
         self.solve_result = None  # the last solve's outcome, when it ran outside a graph
         self.newton = Newton(self, newton_iterations, newton_tolerance, line_search)
+        if hasattr(self.solver, "hold"):  # a world Newton holds in place (alpha 0) is not solved again
+            self.solver.hold(self.newton.alpha)
 
         # what the host reads of a step, in one transfer each: before the inverse model's QP, and
         # after the step (the solver's outcome, health, rows at the new state)

@@ -198,13 +198,20 @@ def pcg_direction(z: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d), 
 
 @wp.kernel
 def pcg_scalars(scal: wp.array3d(dtype=wp.float64), tolerance: wp.float64, max_iterations: int, advance: int,
-                info: wp.array(dtype=wp.int32), active: wp.array(dtype=wp.int32)):
+                hold: wp.array(dtype=wp.float64), info: wp.array(dtype=wp.int32), active: wp.array(dtype=wp.int32)):
     """One thread per column and world, after an iteration (``advance = 1``: roll the
     accumulators over, count it) or after the start (``advance = 0``). A column that has
     ``|r| > tolerance |b|``, finite values and iterations left sets ``active``; one that
     reached the tolerance is marked done and frozen, as if its world were alone; one that met
-    NaN or inf stops and raises ``info[NONFINITE]``."""
+    NaN or inf stops and raises ``info[NONFINITE]``. ``hold`` (``(worlds,)``, or None): a world
+    with ``hold[w] = 0`` is not solved; at the start its columns are marked done, keep their
+    start, and read as converged (residual 0, no iterations)."""
     c, w = wp.tid()
+    if advance == 0 and hold.shape[0] > 0:
+        if hold[w] == wp.float64(0.0):
+            scal[c, w, DONE] = wp.float64(1.0)
+            scal[c, w, R2_LAST] = wp.float64(0.0)
+            return
     if advance != 0:
         if scal[c, w, DONE] == wp.float64(0.0):  # a converged column keeps its last r.z and r.r
             scal[c, w, RZ] = scal[c, w, RZ_NEW]

@@ -74,6 +74,7 @@ class PCG:
         self.active = wp.zeros(1, dtype=wp.int32, device=m.device)
         self._graphs = {}
         self.count, self.offset = None, 0  # right-hand sides in use: offset + count[0] (None: all)
+        self.held = None  # worlds not solved (hold)
         self.sizes = [s for s in SIZES if s < shape[0]] + [shape[0]]
         # made here, never inside a capture: an array made there is filled by a copy the graph
         # replays from host memory freed since (a graph captured at the first step picked wrong
@@ -87,6 +88,12 @@ class PCG:
         of one element, updated on the device between solves); the others keep their values and
         their CG scalars read as converged. ``offset``: the right-hand sides always in use."""
         self.count, self.offset = count, int(offset)
+
+    def hold(self, flags: wp.array | None) -> None:
+        """Worlds not to solve: those with ``flags[w] = 0`` (``(worlds,)`` float64 on the device,
+        read at each solve's start; None: none). Their columns keep what ``x`` held and read as
+        converged: a world that Newton holds in place needs no new compliance."""
+        self.held = flags
 
     def prepare(self) -> None:
         """Per linearization: update the preconditioner."""
@@ -190,5 +197,6 @@ class PCG:
         self._scalars(scal, 1)
 
     def _scalars(self, scal: wp.array, advance: int) -> None:
-        launch(kernels.pcg_scalars, scal.shape[:2], inputs=[scal, self.tolerance, self.max_iterations, advance],
+        launch(kernels.pcg_scalars, scal.shape[:2],
+               inputs=[scal, self.tolerance, self.max_iterations, advance, self.held],
                outputs=[self.info, self.active], device=self.op.model.device)
