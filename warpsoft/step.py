@@ -518,6 +518,7 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
     delta, points = host["delta"], host["points"][: rows.num_points]
     lam = host["lam"] if rows.num_columns else np.zeros(rows.num_rows)
     result = host["resolve"] if rows.num_columns else None
+    aims = watch.actuator_aims(sim) if rows.num_actuators else None  # (all worlds at once)
     for w, ws in enumerate(stats.worlds):
         a, acts = rows.actuator_rows(w), rows.actuators[w]
         ws.actuator_delta = {x.name: float(v) for x, v in zip(acts, delta[a], strict=True)}
@@ -536,7 +537,7 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
         if acts and sim.model.scenes[w].inverse:
             watch.out_of_reach(sim, stats, w, delta[a], lam[a])
         elif acts:
-            watch.actuator_residuals(sim, stats, w, delta[a])
+            watch.actuator_residuals(sim, stats, w, delta[a], aims[a])
         if forces and not sim.model.scenes[w].inverse:
             ws.resolve_iterations, ws.resolve_residual = int(result[w, 0]), float(result[w, 1])
             if not result[w, 2]:

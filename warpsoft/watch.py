@@ -115,22 +115,29 @@ def linearization(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.n
 MISSED_COMMAND = 0.05  # relative miss of a displacement command, past which a direct-model actuator warns
 
 
-def actuator_residuals(sim: Simulator, stats: StepStats, w: int, delta: np.ndarray) -> None:
+def actuator_aims(sim: Simulator) -> np.ndarray:
+    """What each row's actuator was asked for this step, ``(rows,)``: its input within its bounds
+    and within its step limit from where it was (for all worlds at once; read by
+    :func:`actuator_residuals` world by world)."""
+    g, k, prev = sim.gauss_seidel.host, gs_kernels, sim.row_delta_prev
+    aim = np.clip(sim.values, g[k.DMIN], g[k.DMAX])
+    return np.clip(aim, prev - g[k.MAX_STEP], prev + g[k.MAX_STEP])
+
+
+def actuator_residuals(sim: Simulator, stats: StepStats, w: int, delta: np.ndarray, aims: np.ndarray) -> None:
     """Direct model: how far each displacement-driven actuator is from what it was asked for
-    this step (its input within its bounds and its step limit), in its units (cable m, cavity
-    m^3); a warning when one misses by more than ``MISSED_COMMAND`` of the command (and more
-    than a floor tied to the model's size)."""
+    this step (``aims``, :func:`actuator_aims` of the world's rows), in its units (cable m,
+    cavity m^3); a warning when one misses by more than ``MISSED_COMMAND`` of the command (and
+    more than a floor tied to the model's size)."""
     rows, ws = sim.rows, stats.worlds[w]
     g, k, start = sim.gauss_seidel.host, gs_kernels, rows.world_row_start[w]
     prev = sim.row_delta_prev
     missed = []
+    misses = np.abs(delta - aims)
     for i, act in enumerate(rows.actuators[w]):
-        r = start + i
-        if g[k.FORCE_MODE, r]:
+        if g[k.FORCE_MODE, start + i]:
             continue
-        aim = float(np.clip(sim.values[r], g[k.DMIN, r], g[k.DMAX, r]))
-        aim = float(np.clip(aim, prev[r] - g[k.MAX_STEP, r], prev[r] + g[k.MAX_STEP, r]))
-        miss = abs(float(delta[i]) - aim)
+        aim, miss = float(aims[i]), float(misses[i])
         ws.actuator_residual[act.name] = miss
         floor = 1e-4 * (sim.size if act.kind == "cable" else sim.size ** 3)
         if miss > MISSED_COMMAND * abs(aim) + floor:

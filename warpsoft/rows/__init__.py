@@ -77,6 +77,7 @@ class Rows:
             self.actuators.append([p.item for k in order if k.actuator for p in placed[k] if p.world == w])
             self.effectors.append([p.item for p in placed[EffectorRows] if p.world == w])
         self.num_rows = row
+        self._effectors_by_world = None  # (index in the effector table, placed) per world, made when first read
         self.world_row_start = np.array(starts, dtype=np.int32)
         self.world_actuators = np.array(counts, dtype=np.int32)
         self.world_bilateral = np.array(bilateral, dtype=np.int32)
@@ -287,19 +288,25 @@ class Rows:
     def effector_positions(self, world: int = 0, points: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Effector points (m) of ``world`` at the last :meth:`evaluate`, by name (from ``points``,
         a :meth:`point_positions` already read, when given: one read serves every world)."""
-        eff = self.kind("effector")
-        if eff is None:
+        if self.kind("effector") is None:
             return {}
         pts = self.point_positions() if points is None else points
-        return {p.item.name: pts[p.first_point] for p in eff.placed if p.world == world}
+        return {p.item.name: pts[p.first_point] for _, p in self._world_effectors(world)}
 
     def targets(self, all_targets: np.ndarray | None, world: int = 0) -> dict[str, np.ndarray]:
         """The targets (m) of ``world``'s targeted effectors, by name, from :meth:`set_time`'s result."""
-        eff = self.kind("effector")
-        if eff is None or all_targets is None:
+        if self.kind("effector") is None or all_targets is None:
             return {}
-        return {p.item.name: all_targets[k] for k, p in enumerate(eff.placed)
-                if p.world == world and p.item.target is not None}
+        return {p.item.name: all_targets[k] for k, p in self._world_effectors(world) if p.item.target is not None}
+
+    def _world_effectors(self, world: int) -> list[tuple[int, Placed]]:
+        """``world``'s effectors with their index in the effector table (found once for all worlds:
+        a report of many worlds reads them for each world every step)."""
+        if self._effectors_by_world is None:
+            self._effectors_by_world = [[] for _ in range(self.model.num_worlds)]
+            for k, p in enumerate(self.kind("effector").placed):
+                self._effectors_by_world[p.world].append((k, p))
+        return self._effectors_by_world[world]
 
     def cable_paths(self, world: int = 0) -> dict[str, np.ndarray]:
         """Cable polylines (m, pull point first) of ``world`` at the last :meth:`evaluate`."""
