@@ -66,6 +66,13 @@ def first_running(i: int, i1: int, uniform: bool, scal: wp.array3d(dtype=wp.floa
     return i
 
 
+@wp.func
+def converged_node(uniform: bool, scal: wp.array3d(dtype=wp.float64), c: int, w: int) -> bool:
+    """In a block that straddles two worlds, whether this node's world ``w`` has converged in
+    column ``c`` (a block of one world was judged once, by :func:`first_running`)."""
+    return not uniform and scal[c, w, DONE] != wp.float64(0.0)
+
+
 @wp.kernel
 def pcg_residual(
     b: wp.array2d(dtype=wp.vec3d),
@@ -122,7 +129,7 @@ def pcg_curvature(p: wp.array2d(dtype=wp.vec3d), ap: wp.array2d(dtype=wp.vec3d),
     pap = wp.float64(0.0)
     i = first_running(i0 + lane, i1, uniform, scal, c, w)
     while i < i1:
-        if scal[c, world[i], DONE] != wp.float64(0.0):
+        if converged_node(uniform, scal, c, world[i]):
             i += wp.block_dim()
             continue
         api = wp.cw_mul(mask[i], ap[c, i])
@@ -150,7 +157,7 @@ def pcg_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: 
     rr = wp.float64(0.0)
     i = first_running(i0 + lane, i1, uniform, scal, c, w)
     while i < i1:
-        if scal[c, world[i], DONE] != wp.float64(0.0):
+        if converged_node(uniform, scal, c, world[i]):
             i += wp.block_dim()
             continue
         alpha = step_length(scal, c, world[i])
@@ -171,7 +178,7 @@ def pcg_rz(r: wp.array2d(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d), world: 
     rz = wp.float64(0.0)
     i = first_running(i0 + lane, i1, uniform, scal, c, w)
     while i < i1:
-        if scal[c, world[i], DONE] != wp.float64(0.0):
+        if converged_node(uniform, scal, c, world[i]):
             i += wp.block_dim()
             continue
         rz = node_add(uniform, rz, wp.dot(r[c, i], z[c, i]), scal, c, world[i], RZ_NEW)
