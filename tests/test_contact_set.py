@@ -33,6 +33,13 @@ def sliding_block(scene_module):
     return scene, 30
 
 
+def bearing(sim) -> int:
+    """The contacts of world 0 whose normal force is above 1e-9 of the largest."""
+    rows = sim.rows
+    lam = sim.gauss_seidel.lam.numpy()[rows.contact_rows(0)][:: rows.rows_per_contact(0)]
+    return int(np.count_nonzero(lam > 1e-9 * max(lam.max(), 1e-300)))
+
+
 @pytest.mark.parametrize("solver", ["direct", "pcg"])
 @pytest.mark.parametrize("case", [hertz, cube_on_slab, sliding_block])
 def test_the_lazy_contact_set_steps_as_resolving_every_contact(scene_module, case, solver):
@@ -59,7 +66,7 @@ def test_the_lazy_contact_set_steps_as_resolving_every_contact(scene_module, cas
         for name, (r, p) in lazy.rigid_poses().items():
             r_full, p_full = full.rigid_poses()[name]
             assert np.abs(p - p_full).max() < 1e-12 and np.abs(r - r_full).max() < 1e-10
-        assert a.contacts == b.contacts
+        assert bearing(lazy) == bearing(full)  # (a force of 1e-10 of the largest may be 0 on the other side)
         assert abs(a.contact_force - b.contact_force) <= 1e-9 * max(b.contact_force, 1e-12)
         rows = lazy.rows
         in_use = int(rows.world_force_rows.numpy()[0])

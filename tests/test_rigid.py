@@ -8,6 +8,8 @@ import warpsoft as ws
 from warpsoft.scene import obstacles as ob
 from warpsoft.scene.rigid import mass_properties
 
+from .geometry import point_triangle_distance, winding_numbers
+
 G = 9.81
 
 
@@ -82,20 +84,69 @@ def test_a_cube_falls_and_rests_on_the_floor_without_drift():
 
 
 def test_a_cube_rests_on_a_soft_slab():
-    """The slab's surface nodes carry the cube's weight (the forces the cube puts on them add up
-    to it); the cube sinks by the slab's compression, tens of micrometres, and tilts by no more
-    than that compression across its width (the slab's mesh is not symmetric)."""
+    """The slab carries the cube's weight (the contact forces on its nodes add up to it), through
+    both kinds of contact: its surface nodes against the cube (pushed down) and the cube's points
+    against its triangles (pushed up); the cube sinks by the slab's compression, tens of
+    micrometres, and tilts by no more than that compression across its width (the slab's mesh
+    is not symmetric)."""
     sim = ws.Simulator(drop_scene(drop=0.0005, soft_floor=True), device="cpu")
     for _ in range(60):
         sim.step()
     rotation, p = sim.rigid_poses()["cube"]
-    points, forces = sim.constraint_geometry()["contacts"]
     weight = sim.model.rigid[0][1].mass * G
-    assert forces[:, 2].sum() == pytest.approx(-weight, rel=1e-4)
+    on_nodes = sim.rows.forces(sim.gauss_seidel.lam.numpy())
+    assert on_nodes[:, 2].sum() == pytest.approx(-weight, rel=1e-4)
+    points, forces = sim.constraint_geometry()["contacts"]  # the force on each contact's point
+    assert forces[:, 2].min() < -1e-3 * weight and forces[:, 2].max() > 1e-3 * weight  # nodes down, cube points up
     sink = 0.0225 - p[2]
     assert 0.0 < sink < 1e-4
     tilt = np.arccos(np.clip((np.trace(rotation) - 1) / 2, -1, 1))
     assert tilt < 2 * sink / 0.025
+
+
+def test_a_small_cube_rests_between_the_nodes_of_a_coarse_slab():
+    """Rigid points against soft triangles: a steel cube smaller than the slab's elements, set
+    over the middle of a surface triangle, where no slab node comes within contact distance of
+    it (the slab's nodes alone could not hold it). Its corners and edges rest on the triangle:
+    none of its points enters the slab, the forces on the slab's nodes carry its weight (equal
+    and opposite to those on the cube), and it stays there without drift."""
+    scene = ws.Scene("small cube", gravity=(0, 0, -G), dt=0.01)
+    slab = scene.add_body("slab", ws.mesh_shape(ws.shapes.Box((-0.03, -0.03, 0), (0.06, 0.06, 0.01)), 0.01),
+                          ws.Material(5e4, 0.3, 1000.0))
+    scene.fix(slab, ws.InBox((-1, -1, -1), (1, 1, 1e-4)))
+    scene.set_damping(1.0, 0.0)
+    mesh = slab.mesh
+    top = [t for t in mesh.surface() if np.allclose(mesh.nodes[t, 2], 0.01)]
+    tri = min(top, key=lambda t: np.linalg.norm(mesh.nodes[t, :2].mean(axis=0)))
+    middle = mesh.nodes[tri].mean(axis=0)
+    side = 0.003
+    cube = scene.add_rigid("cube", ws.obstacles.Box(middle + [0, 0, 0.5 * side + 0.0002], (side,) * 3),
+                           density=8000.0, mu=0.5)
+    scene.set_contacts(64)
+    reach = 0.25 * np.mean(np.linalg.norm(mesh.nodes[top] - np.roll(mesh.nodes[top], 1, axis=1), axis=2))
+    assert cube.shape.distance(mesh.nodes).min() > 1.2 * reach  # no slab node can reach the cube
+    sim = ws.Simulator(scene, device="cpu")
+    heights = []
+    for _ in range(40):
+        stats = sim.step()
+        heights.append(sim.rigid_poses()["cube"][1][2])
+    assert not stats.warnings and stats.worlds[0].contacts >= 4
+    rotation, center = sim.rigid_poses()["cube"]
+    offsets = 0.5 * side * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+    corners = center + offsets @ rotation.T
+    q, surface = sim.state.positions(), mesh.surface()
+    tris = q[surface]
+    depth = [point_triangle_distance(np.repeat(c[None], len(surface), axis=0), *tris.transpose(1, 0, 2)).min()
+             for c in corners]
+    inside = winding_numbers(corners, tris) > 0.5
+    assert np.max(np.where(inside, depth, 0.0)) < 1e-12  # the bottom corners on the surface, none in
+    sink = middle[2] + 0.5 * side - center[2]
+    assert 0.0 <= sink < 2e-5  # the slab's surface gives by micrometres under 2 mN
+    weight = cube.mass * G
+    forces = sim.rows.forces(sim.gauss_seidel.lam.numpy())
+    assert forces[:, 2].sum() == pytest.approx(-weight, rel=1e-6)
+    assert np.abs(forces[:, :2].sum(axis=0)).max() < 1e-6 * weight
+    assert np.ptp(heights[-10:]) < 1e-9
 
 
 def test_a_cube_rests_on_a_cube():

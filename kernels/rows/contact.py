@@ -9,12 +9,15 @@ candidates, in candidate order (deterministic), the world's contact slots up to 
 A slot's row measures the gap ``delta = phi(x)`` (m, the solid's signed distance) with
 ``H = n`` (its outward normal) at a soft point, and on the rigid bodies involved the entries
 ``(n, r x n)`` for the point's body and ``(-n, -r x n)`` for the owner (``r`` from each
-body's centre of mass); an unused slot's row is inert (no entry, ``delta = 0``).
+body's centre of mass); an unused slot's row is inert (no entry, ``delta = 0``). Against a soft
+body's triangles (its own surface nodes, ``SELF``, or a rigid body's points, ``SURFACE``) the
+row is measured from the triangle's nearest point and has entries on its three nodes too.
 """
 
 import warp as wp
 
 from .closest import triangle_closest, triangle_nearest
+from .rigid_surface import rigid_nearest
 from .self_contact import self_gap, self_nearest, triangle_point
 
 FLOOR = wp.constant(0)
@@ -24,6 +27,7 @@ CAPSULE = wp.constant(3)
 CYLINDER = wp.constant(4)
 MESH = wp.constant(5)
 SELF = wp.constant(6)  # a body's own surface (self_contact.py): a, b, rot unused, radius the rest-shape apart distance
+SURFACE = wp.constant(7)  # a soft body's surface met by rigid points (rigid_surface.py): a, b, radius, rot unused
 
 
 @wp.func
@@ -154,10 +158,12 @@ class Obstacles:
     """Every (obstacle, body) record of the model, one entry each: its kind, two points ``a``,
     ``b`` (m), radius (m) and rotation (world from local), as ``obstacle_distance`` reads them;
     for a mesh its BVH id and first triangle in ``tri_xyz`` (all meshes' triangles, ``(t, 3)``
-    vertices in double); ``reach`` the contact distance (m). Self-contact records (``SELF``) have
-    a BVH of their body's surface, their first triangle in ``tri_nodes`` (every self-contact
-    body's surface triangles, global node ids) and, in ``radius``, the distance (m) within which
-    a node and a triangle of the rest shape ``rest`` (``(n,)`` m) are neighbours."""
+    vertices in double); ``reach`` the contact distance (m). Soft-surface records (``SELF``,
+    ``SURFACE``) have a BVH of their body's surface and their first triangle in ``tri_nodes``
+    (the surface triangles of every soft body met so, global node ids); a ``SELF`` record has in
+    ``radius`` the distance (m) within which a node and a triangle of the rest shape ``rest``
+    (``(n,)`` m) are neighbours; a ``SURFACE`` record has in ``partner`` the record of the same
+    rigid body's solid met by the same soft body's nodes (-1 for other kinds)."""
 
     kind: wp.array(dtype=wp.int32)
     a: wp.array(dtype=wp.vec3d)
@@ -170,6 +176,7 @@ class Obstacles:
     reach: wp.array(dtype=wp.float64)
     tri_nodes: wp.array(dtype=wp.vec3i)
     rest: wp.array(dtype=wp.vec3d)
+    partner: wp.array(dtype=wp.int32)
 
 
 @wp.func
@@ -238,6 +245,27 @@ def pose_records(owned: wp.array(dtype=wp.int32), owner: wp.array(dtype=wp.int32
     obstacles.rot[o] = rot * rot_loc[o]
 
 
+@wp.func
+def flat_against(obstacles: Obstacles, solid: int, tri: wp.vec3i, q: wp.array(dtype=wp.vec3d)) -> bool:
+    """Whether the soft triangle ``tri`` lies against one flat face of the rigid solid (record
+    ``solid``), its three nodes within contact distance of that face and facing it: then the
+    nodes' own rows against the solid keep the whole triangle out of it (the convex solid lies
+    behind the face's plane, the triangle in front of it), and a rigid point's row against the
+    triangle would be the sum of theirs with the weights of its nearest point (the contact
+    problem then has forces that cancel, and no unique solution)."""
+    reach = obstacles.reach[solid]
+    phi0, n0 = record_distance(obstacles, solid, q[tri[0]])
+    phi1, n1 = record_distance(obstacles, solid, q[tri[1]])
+    phi2, n2 = record_distance(obstacles, solid, q[tri[2]])
+    if phi0 >= reach or phi1 >= reach or phi2 >= reach:  # a node without its row
+        return False
+    same = wp.float64(1.0 - 1e-9)
+    if wp.dot(n0, n1) < same or wp.dot(n0, n2) < same:  # not one face (an edge, a corner, a curved solid)
+        return False
+    xa = q[tri[0]]
+    return wp.dot(n0, wp.cross(q[tri[1]] - xa, q[tri[2]] - xa)) < wp.float64(0.0)
+
+
 @wp.kernel
 def mark_candidates(
     q: wp.array(dtype=wp.vec3d),
@@ -266,6 +294,16 @@ def mark_candidates(
         near[c] = wp.where(t >= 0, 1, 0)
         return
     x = point_at(points, bodies, q, c)
+    if obstacles.kind[o] == SURFACE:  # a rigid body's point against a soft body's triangles
+        b = points.body[c]
+        t, dist = rigid_nearest(obstacles.mesh[o], obstacles.tri0[o], obstacles.tri_nodes, q, v, x, x - bodies.p[b],
+                                body_speed(bodies, b, x), obstacles.reach[o], h)
+        if t >= 0:
+            if flat_against(obstacles, obstacles.partner[o], obstacles.tri_nodes[t], q):
+                t = wp.int32(-1)
+        cand_tri[c] = t
+        near[c] = wp.where(t >= 0, 1, 0)
+        return
     phi, n = record_distance(obstacles, o, x)
     reach = obstacles.reach[o] + h * (body_speed(bodies, points.body[c], x) + body_speed(bodies, owner[o], x))
     near[c] = wp.where(phi < reach, 1, 0)
@@ -313,12 +351,12 @@ def assign_slots(
     counts them all (more than the capacity: an overflow), ``force_rows[w]`` is the world's
     rows always in use (actuators, attachments: ``world_held``) plus its contacts' rows (1 per
     contact, 3 with friction: normal, then two tangents, whose ``friction`` is the record's
-    coefficient). A slot keeps the point's position
-    now as the anchor its tangential slip is measured from: carried over the step by a moving
-    obstacle, or kept in the owner's frame for a rigid body's solid; a self-contact keeps its
-    triangle, the weights of the triangle's point nearest to the node now, and the node's
-    offset from that point (its slip is measured between the two). A contact's multipliers
-    start from what its candidate carried at the last step (0 for a new contact)."""
+    coefficient). A slot keeps the point's position now as the anchor its tangential slip is
+    measured from: carried over the step by a moving obstacle, or kept in the owner's frame for
+    a rigid body's solid; a contact with a soft body's triangle (``SELF``, ``SURFACE``) keeps
+    the triangle, the weights of its point nearest to the point now, and the point's offset
+    from it (its slip is measured between the two). A contact's multipliers start from what its
+    candidate carried at the last step (0 for a new contact)."""
     w = wp.tid()
     cap = capacity[w]
     rps = rows_per_slot[w]
@@ -339,7 +377,7 @@ def assign_slots(
                 o = points.obstacle[c]
                 x = point_at(points, bodies, q, c)
                 b = owner[o]
-                if obstacles.kind[o] == SELF:  # the node's offset from the triangle's nearest point
+                if obstacles.kind[o] == SELF or obstacles.kind[o] == SURFACE:  # offset from the nearest point
                     t = cand_tri[c]
                     tri = obstacles.tri_nodes[t]
                     w3, inside = triangle_nearest(x, q[tri[0]], q[tri[1]], q[tri[2]])
@@ -393,9 +431,9 @@ def contact_rows(
 ):
     """The rows of slot ``k`` at ``q`` and the bodies' poses (first row ``slot_row[k]``,
     ``slot_rows[k]`` of them, ``entries_per_row`` soft entries each from ``entry_offset +
-    entries_per_row slot_entry[k]`` (1, or 4 in a model with self-contact: the node, then a
-    triangle's three) and, with rigid bodies (``rigid_offset >= 0``), two rigid entries each from
-    ``rigid_offset + 2 slot_entry[k]``): the gap along the normal, and with friction the slip
+    entries_per_row slot_entry[k]`` (1, or 4 in a model with soft-surface records: the node,
+    then a triangle's three) and, with rigid bodies (``rigid_offset >= 0``), two rigid entries
+    each from ``rigid_offset + 2 slot_entry[k]``): the gap along the normal, and with friction the slip
     from the anchor along two tangents. ``slot_point`` keeps the point (m) and ``row_dir`` each
     row's direction at it (what the force on the point is made of). An unused slot's rows are
     inert."""
@@ -423,7 +461,8 @@ def contact_rows(
             soft = wp.float64(1.0)
         else:
             r_point = x - bodies.p[pb]
-        if obstacles.kind[o] == SELF:  # against the triangle: gap from its nearest point, slip from the anchor's
+        if obstacles.kind[o] == SELF or obstacles.kind[o] == SURFACE:  # against a triangle: gap from its nearest
+            # point, slip from the anchor's
             tri = obstacles.tri_nodes[slot_tri[k]]
             phi, n, w_now, dist = self_gap(x, q[tri[0]], q[tri[1]], q[tri[2]])
             w_anchor = slot_weights[k]

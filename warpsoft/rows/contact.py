@@ -6,14 +6,16 @@ lambda_n``.
 
 The points are the soft bodies' surface nodes and the rigid bodies' collision points; the
 solids are the obstacles (fixed or moving by a schedule) and the rigid bodies' own (a body's
-points meet every other body's solid, never its own), and, for a body that touches itself, its
-own surface triangles (``kernels/rows/self_contact.py``: rows on four nodes). A world has a
-fixed block of ``capacity`` contact slots (1 or 3 rows each); detection, at the start of a
-step, fills the first of them with the points then within their solid's contact distance of
-where it will be at the step's end (in candidate order: deterministic); a moving obstacle
-carries the anchors of its contacts, a rigid body keeps them in its frame; the rows are
-evaluated at every linearization of the step for those points, and the rest stay inert. More
-near points than slots is an overflow, reported. Kernels: ``kernels/rows/contact.py``.
+points meet every other body's solid, never its own), the soft bodies' surface triangles, which
+the rigid bodies' points meet (``kernels/rows/rigid_surface.py``; a rigid body holding some of
+a soft body's nodes skips that body), and, for a body that touches itself, its own surface
+triangles (``kernels/rows/self_contact.py``). A row against a triangle has entries on four
+nodes. A world has a fixed block of ``capacity`` contact slots (1 or 3 rows each); detection,
+at the start of a step, fills the first of them with the points then within their solid's
+contact distance of where it will be at the step's end (in candidate order: deterministic); a
+moving obstacle carries the anchors of its contacts, a rigid body keeps them in its frame; the
+rows are evaluated at every linearization of the step for those points, and the rest stay
+inert. More near points than slots is an overflow, reported. Kernels: ``kernels/rows/contact.py``.
 """
 
 from __future__ import annotations
@@ -74,7 +76,7 @@ class ContactRows(RowKind):
         d = model.device
         worlds = model.num_worlds
         rec = {k: [] for k in ("kind", "a", "b", "radius", "rot", "reach", "mu", "owner", "a_loc", "b_loc",
-                               "rot_loc")}
+                               "rot_loc", "partner")}
         self.records = []  # the scene's obstacle entry or rigid body of each (solid, points) record
         cand = {k: [] for k in ("node", "body", "local", "obstacle")}
         cand_start = [0]
@@ -88,13 +90,14 @@ class ContactRows(RowKind):
                 ids = att.nodes + model.body_info(att.body.name, w).node_start
                 held.setdefault(rigid_index[(w, id(att.rigid))], []).extend(ids.tolist())
 
-        surfaces = {}  # the self-contact records' bodies: record -> BodyInfo
+        surfaces = {}  # the soft-surface records' bodies (self-contact, rigid points): record -> BodyInfo
+        solid_record = {}  # (rigid body, soft body's first node) -> the record of its solid met by those nodes
 
-        def add(entry, pack, owner, reach, mu, nodes=None, body=None):  # one record and its candidates
+        def add(entry, pack, owner, reach, mu, nodes=None, body=None, partner=-1):  # a record and its candidates
             k, pa, pb, r, R = pack
             self.records.append(entry)
             for key, v in (("kind", k), ("a", pa), ("b", pb), ("radius", r), ("rot", R), ("reach", reach),
-                           ("mu", mu), ("owner", owner)):
+                           ("mu", mu), ("owner", owner), ("partner", partner)):
                 rec[key].append(v)
             if owner >= 0:  # the record in its body's frame (its centre of mass, world axes at t = 0)
                 _, la, lb, _, lR = entry.shape.moved(np.eye(3), -entry.center).pack()
@@ -120,27 +123,37 @@ class ContactRows(RowKind):
         for w in range(worlds):
             p = by_world.get(w)
             if p is not None:
-                softs = []
+                softs = []  # (BodyInfo, surface nodes, contact distance)
                 for info in (b for b in model.bodies if b.world == w):
                     body = next(bd for bd in model.scenes[w].bodies if bd.name == info.name)
-                    softs.append((np.unique(info.surface), 0.25 * mean_surface_edge(body.mesh)))
+                    softs.append((info, np.unique(info.surface), 0.25 * mean_surface_edge(body.mesh)))
                 rigids = [(rigid_index[(w, id(rb))], RIGID_REACH * rb.size) for rb in p.item.rigid]
                 for entry in p.item.obstacles:  # obstacles: every soft body's nodes, every rigid body's points
                     pack = entry.at(0.0).pack()
-                    for nodes, reach in softs:
+                    for _, nodes, reach in softs:
                         add(entry, pack, -1, entry.contact_distance or reach, entry.mu, nodes=nodes)
                     for k, reach in rigids:
                         add(entry, pack, -1, entry.contact_distance or reach, entry.mu, body=k)
                 for k, _ in rigids:  # a rigid body's solid: the soft nodes, the other rigid bodies' points
                     rb = model.rigid[k][1]
                     pack = rb.shape.pack()
-                    for nodes, reach in softs:
+                    for info, nodes, reach in softs:
                         free = np.setdiff1d(nodes, held.get(k, []))
                         if len(free):
                             add(rb, pack, k, rb.contact_distance or reach, rb.mu, nodes=free)
+                            solid_record[(k, info.node_start)] = len(self.records) - 1
                     for j, reach in rigids:
                         if j != k:
                             add(rb, pack, k, rb.contact_distance or reach, rb.mu, body=j)
+                for k, _ in rigids:  # a rigid body's points against the soft bodies' triangles it holds none of
+                    rb = model.rigid[k][1]
+                    pack = (kernels.SURFACE, np.zeros(3), np.zeros(3), 0.0, np.eye(3))
+                    for info, nodes, reach in softs:
+                        if np.isin(nodes, held.get(k, [])).any():  # attached: its points sit on the surface
+                            continue
+                        add(rb, pack, -1, rb.contact_distance or reach, rb.mu, body=k,
+                            partner=solid_record[(k, info.node_start)])
+                        surfaces[len(self.records) - 1] = info
                 for sc in p.item.selfs:  # a body's surface nodes against its own triangles
                     info = model.body_info(sc.body.name, w)
                     reach = sc.contact_distance or 0.25 * mean_surface_edge(sc.body.mesh)
@@ -156,8 +169,9 @@ class ContactRows(RowKind):
             slot_start.append(slot_start[-1] + int(capacity[w]))
         self.num_slots = slot_start[-1]
         slot_rows = np.concatenate(slot_rows)
-        # soft entries per row: the point, and with self-contact a triangle's three nodes
+        # soft entries per row: the point, and with soft-surface records a triangle's three nodes
         self.entries_per_row = 4 if surfaces else 1
+        self.self_contact = any(k == kernels.SELF for k in rec["kind"])  # (the surfaces' normals serve it alone)
         self.num_entries = self.entries_per_row * int(slot_rows.sum())
         self.num_rigid_entries = 2 * self.num_entries if model.num_rigid else 0  # the point's body, the solid's
         self.num_candidates = cand_start[-1]
@@ -166,7 +180,7 @@ class ContactRows(RowKind):
         self.kind, self.reach, self.mu = i32(rec["kind"]), f64(rec["reach"], wp.float64), f64(rec["mu"], wp.float64)
         self.a, self.b, self.rot = f64(rec["a"], wp.vec3d), f64(rec["b"], wp.vec3d), f64(rec["rot"], wp.mat33d)
         self.radius = f64(rec["radius"], wp.float64)
-        self.owner = i32(rec["owner"])
+        self.owner, self.partner = i32(rec["owner"]), i32(rec["partner"])
         self.a_loc, self.b_loc = f64(rec["a_loc"], wp.vec3d), f64(rec["b_loc"], wp.vec3d)
         self.rot_loc = f64(rec["rot_loc"], wp.mat33d)
         self.owned = np.flatnonzero(np.array(rec["owner"]) >= 0)
@@ -178,7 +192,7 @@ class ContactRows(RowKind):
         self.step_shift = wp.zeros(n_rec, dtype=wp.vec3d, device=d)
         self.moving = [i for i, e in enumerate(self.records) if getattr(e, "motion", None) is not None]
         self.obstacles = kernels.Obstacles()  # the records as the kernels take them (the same arrays)
-        for name in ("kind", "a", "b", "radius", "rot", "mesh", "tri0", "tri_xyz", "reach", "tri_nodes"):
+        for name in ("kind", "a", "b", "radius", "rot", "mesh", "tri0", "tri_xyz", "reach", "tri_nodes", "partner"):
             setattr(self.obstacles, name, getattr(self, name))
         self.obstacles.rest = model.rest
         self._posed_at = None
@@ -242,29 +256,34 @@ class ContactRows(RowKind):
 
     def _meshes(self, device, surfaces: dict) -> None:
         """The records' triangles and BVHs (``wp.Mesh``, single precision, kept alive here):
-        a mesh obstacle's, its vertices in double in ``tri_xyz``; a self-contact's, its body's
-        surface (``surfaces``: record -> BodyInfo), its triangles' global node ids in
+        a mesh obstacle's, its vertices in double in ``tri_xyz``; a soft-surface record's (a
+        self-contact, a rigid body's points against a soft body), its body's surface
+        (``surfaces``: record -> BodyInfo; one BVH per body), its triangles' global node ids in
         ``tri_nodes``, the BVH's vertices moved to the nodes and refitted by :meth:`detect`.
         ``tri0`` is each record's first triangle in its table; analytic records get id 0."""
         self.bvh, ids, tri0, xyz, made = [], [], [], [], {}
-        self.surface_bvh, tris, nodes = [], [], []
-        self.surface_points = wp.zeros(max(sum(i.node_count for i in surfaces.values()), 1), dtype=wp.vec3,
+        self.surface_bvh, tris, nodes, bodies = [], [], [], {}
+        unique = {info.node_start: info for info in surfaces.values()}
+        self.surface_points = wp.zeros(max(sum(i.node_count for i in unique.values()), 1), dtype=wp.vec3,
                                        device=device)
         count = start = surface_count = 0
         for o, entry in enumerate(self.records):
-            if o in surfaces:  # a body's own surface
+            if o in surfaces:  # a soft body's surface: one BVH per body, shared by its records
                 info = surfaces[o]
-                view = self.surface_points[start:start + info.node_count]
-                view.assign(self.model.rest_np[info.node_start:info.node_start + info.node_count].astype(np.float32))
-                local = (info.surface - info.node_start).astype(np.int32)
-                self.surface_bvh.append(wp.Mesh(points=view, indices=wp.array(local.ravel(), dtype=wp.int32,
-                                                                               device=device)))
-                ids.append(self.surface_bvh[-1].id)
-                tri0.append(surface_count)
-                tris.append(info.surface)
-                nodes.append(np.arange(info.node_start, info.node_start + info.node_count))
-                start += info.node_count
-                surface_count += len(info.surface)
+                if info.node_start not in bodies:
+                    view = self.surface_points[start:start + info.node_count]
+                    view.assign(self.model.rest_np[info.node_start:info.node_start + info.node_count]
+                                .astype(np.float32))
+                    local = (info.surface - info.node_start).astype(np.int32)
+                    self.surface_bvh.append(wp.Mesh(points=view, indices=wp.array(local.ravel(), dtype=wp.int32,
+                                                                                   device=device)))
+                    bodies[info.node_start] = (self.surface_bvh[-1].id, surface_count)
+                    tris.append(info.surface)
+                    nodes.append(np.arange(info.node_start, info.node_start + info.node_count))
+                    start += info.node_count
+                    surface_count += len(info.surface)
+                ids.append(bodies[info.node_start][0])
+                tri0.append(bodies[info.node_start][1])
                 continue
             shape = entry.shape
             if not isinstance(shape, ob.Mesh):
@@ -329,11 +348,12 @@ class ContactRows(RowKind):
         follow; a contact's multiplier starts from its candidate's at the last step."""
         d, bodies = self.model.device, self.bodies(table.bodies)
         self._pose(bodies)
-        if self.surface_bvh:  # the self-contact surfaces where the nodes are
+        if self.surface_bvh:  # the soft surfaces met by points where the nodes are
             launch(self_kernels.surface_points, len(self.surface_node), inputs=[q, self.surface_node],
                    outputs=[self.surface_points], device=d)
             for bvh in self.surface_bvh:
                 bvh.refit()
+        if self.self_contact:  # which way the surfaces face at their nodes
             self.surface_normal.zero_()
             launch(self_kernels.surface_normals, len(self.tri_nodes), inputs=[q, self.tri_nodes],
                    outputs=[self.surface_normal], device=d)

@@ -1,0 +1,58 @@
+"""A rigid body's collision points against a soft body's surface triangles
+(``warpsoft/rows/contact.py``, records of kind ``SURFACE``).
+
+The other half of a contact between a rigid and a soft body: the soft body's surface nodes meet
+the rigid body's solid (records the rigid body owns), and the rigid body's points meet the soft
+body's triangles here, so that a corner or an edge of the solid pressing between the soft
+body's nodes is caught too. The gap is the self-contact's (``self_contact.self_gap``): along
+the triangle's outward normal ``n`` from its nearest point ``y = wa xa + wb xb + wc xc``,
+``delta = n . (x_p - y)``, with the entries ``(n, r x n)`` on the point's body and ``-w_i n`` on
+the triangle's nodes; the forces are equal and opposite.
+"""
+
+import warp as wp
+
+from .self_contact import CORNER, self_gap
+
+
+@wp.func
+def rigid_nearest(mesh: wp.uint64, tri0: int, tri_nodes: wp.array(dtype=wp.vec3i), q: wp.array(dtype=wp.vec3d),
+                  v: wp.array(dtype=wp.vec3d), x: wp.vec3d, outward: wp.vec3d, speed: wp.float64, reach: wp.float64,
+                  h: wp.float64):
+    """The surface triangle (index into ``tri_nodes``; -1 for none) of a soft body nearest to a
+    rigid body's point ``x`` (m) that the point may touch this step, and the distance to it (m).
+
+    ``outward`` is the direction from the rigid body's centre of mass to the point (the way its
+    convex solid faces there): a triangle that faces the same way is behind the point, not in
+    front of it. The point may touch a triangle whose signed gap is above ``-reach`` (a point
+    deeper behind it is across the soft body) and below ``reach`` plus what the point and the
+    triangle can close in the step (``h`` (s) times the point's ``speed`` and the nodes' ``v``,
+    m/s), and that it lies over, or within ``reach`` of along the face. When the nearest point
+    of the nearest such triangle is its corner (within :data:`CORNER`), the contact is left to
+    that node's own row against the rigid solid, which measures the same gap: two such rows
+    make the contact problem degenerate."""
+    pad = wp.float32(reach + wp.float64(2.0) * h * speed) * wp.float32(1.01) + wp.float32(1e-7)
+    xf = wp.vec3(wp.float32(x[0]), wp.float32(x[1]), wp.float32(x[2]))
+    query = wp.mesh_query_aabb(mesh, xf - wp.vec3(pad, pad, pad), xf + wp.vec3(pad, pad, pad))
+    face = wp.int32(0)
+    best = wp.int32(-1)
+    best_dist = wp.float64(1e300)
+    best_w = wp.vec3d()
+    near_one = wp.float64(1.0 - CORNER)
+    while wp.mesh_query_aabb_next(query, face):
+        t = tri0 + face
+        tri = tri_nodes[t]
+        xa = q[tri[0]]
+        if wp.dot(outward, wp.cross(q[tri[1]] - xa, q[tri[2]] - xa)) >= wp.float64(0.0):  # not facing
+            continue
+        gap, n, w, dist = self_gap(x, xa, q[tri[1]], q[tri[2]])
+        closing = h * (speed + wp.max(wp.length(v[tri[0]]), wp.max(wp.length(v[tri[1]]), wp.length(v[tri[2]]))))
+        beside = wp.sqrt(wp.max(dist * dist - gap * gap, wp.float64(0.0)))  # along the face, past its edge
+        if gap <= -reach or dist >= reach + closing or beside >= reach or dist >= best_dist:
+            continue
+        best = t
+        best_dist = dist
+        best_w = w
+    if best_w[0] > near_one or best_w[1] > near_one or best_w[2] > near_one:  # at a node: its row against the solid
+        best = wp.int32(-1)
+    return best, best_dist
