@@ -453,15 +453,19 @@ def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray
         a, e = rows.actuator_rows(w), rows.effector_rows(w)
         na = a.stop - a.start
         inputs = row_inputs(gs.host, sim.values, delta, a)
-        touching = int(host["force_rows"][w]) - na  # the contacts detected this step
-        if touching > 0:  # a QPCC: the contacts' forces with the actuation
+        b = np.arange(rows.bilateral_rows(w).start, rows.bilateral_rows(w).stop)  # attachments, always held
+        touching = int(host["force_rows"][w]) - na - len(b)  # the contacts detected this step
+        if touching > 0 or len(b):  # a QPCC: the attachments' and contacts' forces with the actuation
             c = np.arange(rows.contact_rows(w).start, rows.contact_rows(w).start + touching)
-            ids = np.concatenate([np.arange(a.start, a.stop), c, np.arange(e.start, e.stop)])
-            qp = ContactQP(W[ids, :na + touching], dfree[ids], np.arange(na), na + np.arange(touching),
-                           na + touching + np.arange(e.stop - e.start), inputs, sim.effector_weights[w],
-                           scene.inverse_epsilon)
+            ids = np.concatenate([np.arange(a.start, a.stop), b, c, np.arange(e.start, e.stop)])
+            nf = na + len(b) + touching
+            qp = ContactQP(W[ids, :nf], dfree[ids], np.arange(na), na + len(b) + np.arange(touching),
+                           nf + np.arange(e.stop - e.start), inputs, sim.effector_weights[w], scene.inverse_epsilon,
+                           b=na + np.arange(len(b)))
             res = solve_inverse_contacts(qp, lam[a])
             lam[a], lam[c] = res.lam_a, res.lam_c
+            if res.lam_b is not None:
+                lam[b] = res.lam_b
             stats.worlds[w].qp_pivots = res.pivots
         else:
             res = solve_inverse(W[a, :na], W[e, :na], dfree[a], dfree[e], inputs, sim.effector_weights[w], lam[a],

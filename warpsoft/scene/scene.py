@@ -438,10 +438,6 @@ class Scene:
             raise SceneError(f"scene '{self.name}': the inverse model takes frictionless contacts only (its QPCC has "
                              f"no friction rows), but obstacle, rigid body or self-contact '{rough[0]}' has mu > 0; "
                              "set mu=0.0 or use the direct model")
-        if self.inverse and self.attachments:
-            raise SceneError(f"scene '{self.name}': the inverse model does not take attachments (its QP has no "
-                             f"bilateral rows), but attachment '{self.attachments[0].name}' is declared; use the "
-                             "direct model")
         for a in self.attachments:
             held = [f for f in self.fixtures if f.body is a.body and np.any(f.region(a.body.mesh.nodes[a.nodes]))]
             if held:
