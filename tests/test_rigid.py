@@ -104,25 +104,18 @@ def test_a_cube_rests_on_a_soft_slab():
     assert tilt < 2 * sink / 0.025
 
 
-def test_a_small_cube_rests_between_the_nodes_of_a_coarse_slab():
-    """Rigid points against soft triangles: a steel cube smaller than the slab's elements, set
-    over the middle of a surface triangle, where no slab node comes within contact distance of
-    it (the slab's nodes alone could not hold it). Its corners and edges rest on the triangle:
-    none of its points enters the slab, the forces on the slab's nodes carry its weight (equal
-    and opposite to those on the cube), and it stays there without drift."""
-    scene = ws.Scene("small cube", gravity=(0, 0, -G), dt=0.01)
-    slab = scene.add_body("slab", ws.mesh_shape(ws.shapes.Box((-0.03, -0.03, 0), (0.06, 0.06, 0.01)), 0.01),
-                          ws.Material(5e4, 0.3, 1000.0))
-    scene.fix(slab, ws.InBox((-1, -1, -1), (1, 1, 1e-4)))
-    scene.set_damping(1.0, 0.0)
-    mesh = slab.mesh
-    top = [t for t in mesh.surface() if np.allclose(mesh.nodes[t, 2], 0.01)]
-    tri = min(top, key=lambda t: np.linalg.norm(mesh.nodes[t, :2].mean(axis=0)))
-    middle = mesh.nodes[tri].mean(axis=0)
+def test_a_small_cube_rests_between_the_nodes_of_a_coarse_slab(scene_module):
+    """Rigid points against soft triangles (``scenes/validation/pebble.py``): a steel cube
+    smaller than the slab's elements, set over the middle of a surface triangle, where no slab
+    node comes within contact distance of it (the slab's nodes alone could not hold it). Its
+    corners and edges rest on the triangle: none of its points enters the slab, the forces on
+    the slab's nodes carry its weight (equal and opposite to those on the cube), and it stays
+    there without drift."""
+    scene = scene_module("scenes/validation/pebble.py").build()
+    mesh, cube = scene.bodies[0].mesh, scene.rigid_bodies[0]
     side = 0.003
-    cube = scene.add_rigid("cube", ws.obstacles.Box(middle + [0, 0, 0.5 * side + 0.0002], (side,) * 3),
-                           density=8000.0, mu=0.5)
-    scene.set_contacts(64)
+    top = [t for t in mesh.surface() if np.allclose(mesh.nodes[t, 2], 0.01)]
+    middle = cube.center - [0.0, 0.0, 0.5 * side + 0.0002]
     reach = 0.25 * np.mean(np.linalg.norm(mesh.nodes[top] - np.roll(mesh.nodes[top], 1, axis=1), axis=2))
     assert cube.shape.distance(mesh.nodes).min() > 1.2 * reach  # no slab node can reach the cube
     sim = ws.Simulator(scene, device="cpu")
