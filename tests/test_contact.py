@@ -433,12 +433,6 @@ def test_obstacles_are_checked_and_only_declared_ones_run():
         ws.obstacles.Box((0, 0, 0), (1, 1, 1), rotation=np.eye(3) * 2)
     with pytest.raises(ws.SceneError, match="contact capacity must be an integer >= 1"):
         scene.set_contacts(0)
-    scene.inverse = True
-    scene.add_cable("c", body, points=[(0.0, 0.0, 0.006)], pull_point=(-0.02, 0.0, 0.006))
-    scene.add_effector("e", (0.0, 0.0, 0.011), target=(0.0, 0.0, 0.012))
-    scene.add_obstacle("rough", ws.obstacles.Ball((0.0, 0.0, 0.05), 0.01), mu=0.2)
-    with pytest.raises(ws.SceneError, match="inverse model takes frictionless contacts only"):
-        ws.Simulator(scene)
     plain, _ = block()
     plain.obstacles.clear()
     assert ws.Simulator(plain).rows is None  # no obstacle, no effector, no actuator: no row at all

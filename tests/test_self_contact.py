@@ -166,9 +166,3 @@ def test_self_contact_input_is_checked():
     scene.add_self_contact(body, mu=0.3)
     with pytest.raises(SceneError, match="already touches itself"):
         scene.add_self_contact(body)
-    scene.fix(body, ws.InBox((-1, -1, -1), (1, 1, 1e-6)))
-    scene.add_cable("c", body, [(0.005, 0.005, 0.001), (0.005, 0.005, 0.009)], (0.005, 0.005, -0.001))
-    scene.add_effector("tip", (0.005, 0.005, 0.009), target=(0.005, 0.005, 0.008))
-    scene.use_inverse_model()
-    with pytest.raises(SceneError, match="self-contact 'b \\(self\\)' has mu > 0"):
-        ws.Simulator(scene, device="cpu")

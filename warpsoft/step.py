@@ -26,6 +26,7 @@ from .errors import SceneError, SimulationError
 from .launch import launch
 from .resolve import RowInputs, solve_inverse
 from .resolve.qpcc import ContactQP, solve_inverse_contacts
+from .resolve.qpcc_friction import FrictionQP, solve_inverse_friction
 from .state import Control
 from .stats import ConvergenceWarning, StepStats, WorldStats
 
@@ -459,10 +460,21 @@ def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray
             c = np.arange(rows.contact_rows(w).start, rows.contact_rows(w).start + touching)
             ids = np.concatenate([np.arange(a.start, a.stop), b, c, np.arange(e.start, e.stop)])
             nf = na + len(b) + touching
-            qp = ContactQP(W[ids, :nf], dfree[ids], np.arange(na), na + len(b) + np.arange(touching),
-                           nf + np.arange(e.stop - e.start), inputs, sim.effector_weights[w], scene.inverse_epsilon,
-                           b=na + np.arange(len(b)))
-            res = solve_inverse_contacts(qp, lam[a])
+            local = (np.arange(na), na + np.arange(len(b)), na + len(b) + np.arange(touching),
+                     nf + np.arange(e.stop - e.start))
+            if rows.rows_per_contact(w) > 1:  # with friction: the direct model's contact states
+                qp = FrictionQP(W[ids, :nf], dfree[ids], *local, inputs, sim.effector_weights[w],
+                                host["friction"][c[1::3]], scene.inverse_epsilon)
+
+                def physics(lam_a, w=w, a=a, b=b, c=c):
+                    lam_w = gs.contacts_at(host, w, a, lam_a)
+                    return lam_w[b], lam_w[c]
+
+                res = solve_inverse_friction(qp, lam[a], physics)
+            else:
+                qp = ContactQP(W[ids, :nf], dfree[ids], local[0], local[2], local[3], inputs,
+                               sim.effector_weights[w], scene.inverse_epsilon, b=local[1])
+                res = solve_inverse_contacts(qp, lam[a])
             lam[a], lam[c] = res.lam_a, res.lam_c
             if res.lam_b is not None:
                 lam[b] = res.lam_b

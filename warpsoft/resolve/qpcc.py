@@ -47,6 +47,7 @@ class ContactInverseResult:
     seconds: float
     warning: str | None = None
     lam_b: np.ndarray | None = None  # the attachments' forces (N), where solved
+    rounds: int = 0  # with friction: the rounds between the inverse QP and the direct model's contacts
 
 
 @dataclass

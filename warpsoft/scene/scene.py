@@ -433,11 +433,6 @@ class Scene:
         if self.static and self.rigid_bodies:
             raise SceneError(f"scene '{self.name}': rigid body '{self.rigid_bodies[0].name}' needs a dynamic scene "
                              "(a quasi-static step has no inertia to hold a free solid): set static=False")
-        rough = [o.name for o in self.obstacles + self.rigid_bodies + self.self_contacts if o.mu > 0]
-        if self.inverse and rough:
-            raise SceneError(f"scene '{self.name}': the inverse model takes frictionless contacts only (its QPCC has "
-                             f"no friction rows), but obstacle, rigid body or self-contact '{rough[0]}' has mu > 0; "
-                             "set mu=0.0 or use the direct model")
         for a in self.attachments:
             held = [f for f in self.fixtures if f.body is a.body and np.any(f.region(a.body.mesh.nodes[a.nodes]))]
             if held:
