@@ -12,7 +12,7 @@ the triangle's nodes; the forces are equal and opposite.
 
 import warp as wp
 
-from .self_contact import CORNER, self_gap
+from .self_contact import CORNER, search_box, self_gap
 
 
 @wp.func
@@ -31,9 +31,8 @@ def rigid_nearest(mesh: wp.uint64, tri0: int, tri_nodes: wp.array(dtype=wp.vec3i
     of the nearest such triangle is its corner (within :data:`CORNER`), the contact is left to
     that node's own row against the rigid solid, which measures the same gap: two such rows
     make the contact problem degenerate."""
-    pad = wp.float32(reach + wp.float64(2.0) * h * speed) * wp.float32(1.01) + wp.float32(1e-7)
-    xf = wp.vec3(wp.float32(x[0]), wp.float32(x[1]), wp.float32(x[2]))
-    query = wp.mesh_query_aabb(mesh, xf - wp.vec3(pad, pad, pad), xf + wp.vec3(pad, pad, pad))
+    lower, upper = search_box(x, reach, h, speed)
+    query = wp.mesh_query_aabb(mesh, lower, upper)
     face = wp.int32(0)
     best = wp.int32(-1)
     best_dist = wp.float64(1e300)

@@ -43,6 +43,16 @@ def triangle_point(q: wp.array(dtype=wp.vec3d), tri: wp.vec3i, w: wp.vec3d) -> w
 
 
 @wp.func
+def search_box(x: wp.vec3d, reach: wp.float64, h: wp.float64, speed: wp.float64):
+    """The box (single precision, the BVH's) searched around a point ``x`` (m) moving at
+    ``speed`` (m/s): within ``reach + 2 h speed`` of it, widened by 1 % and 0.1 um for the
+    rounding to single precision."""
+    pad = wp.float32(reach + wp.float64(2.0) * h * speed) * wp.float32(1.01) + wp.float32(1e-7)
+    xf = wp.vec3(wp.float32(x[0]), wp.float32(x[1]), wp.float32(x[2]))
+    return xf - wp.vec3(pad, pad, pad), xf + wp.vec3(pad, pad, pad)
+
+
+@wp.func
 def self_gap(x: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
     """Signed gap (m) of point ``x`` to triangle ``abc`` (outward: counter-clockwise seen from
     outside) along its outward face normal ``n``, from the triangle's nearest point (negative
@@ -78,9 +88,8 @@ def self_nearest(mesh: wp.uint64, tri0: int, tri_nodes: wp.array(dtype=wp.vec3i)
     |v_node|`` of the node: a fast triangle is caught by its own nodes' searches."""
     x = q[node]
     speed = wp.length(v[node])
-    pad = wp.float32(reach + wp.float64(2.0) * h * speed) * wp.float32(1.01) + wp.float32(1e-7)
-    xf = wp.vec3(wp.float32(x[0]), wp.float32(x[1]), wp.float32(x[2]))
-    query = wp.mesh_query_aabb(mesh, xf - wp.vec3(pad, pad, pad), xf + wp.vec3(pad, pad, pad))
+    lower, upper = search_box(x, reach, h, speed)
+    query = wp.mesh_query_aabb(mesh, lower, upper)
     face = wp.int32(0)
     best = wp.int32(-1)
     best_dist = wp.float64(1e300)
