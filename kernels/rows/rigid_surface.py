@@ -12,7 +12,7 @@ the triangle's nodes; the forces are equal and opposite.
 
 import warp as wp
 
-from .self_contact import CORNER, search_box, self_gap
+from .self_contact import CORNER, may_touch, search_box
 
 
 @wp.func
@@ -41,13 +41,8 @@ def rigid_nearest(mesh: wp.uint64, tri0: int, tri_nodes: wp.array(dtype=wp.vec3i
     while wp.mesh_query_aabb_next(query, face):
         t = tri0 + face
         tri = tri_nodes[t]
-        xa = q[tri[0]]
-        if wp.dot(outward, wp.cross(q[tri[1]] - xa, q[tri[2]] - xa)) >= wp.float64(0.0):  # not facing
-            continue
-        gap, n, w, dist = self_gap(x, xa, q[tri[1]], q[tri[2]])
-        closing = h * (speed + wp.max(wp.length(v[tri[0]]), wp.max(wp.length(v[tri[1]]), wp.length(v[tri[2]]))))
-        beside = wp.sqrt(wp.max(dist * dist - gap * gap, wp.float64(0.0)))  # along the face, past its edge
-        if gap <= -reach or dist >= reach + closing or beside >= reach or dist >= best_dist:
+        near, w, dist = may_touch(q, v, tri, x, outward, speed, reach, h)
+        if not near or dist >= best_dist:
             continue
         best = t
         best_dist = dist

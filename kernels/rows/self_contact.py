@@ -66,6 +66,25 @@ def self_gap(x: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):
 
 
 @wp.func
+def may_touch(q: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d), tri: wp.vec3i, x: wp.vec3d,
+              facing: wp.vec3d, speed: wp.float64, reach: wp.float64, h: wp.float64):
+    """Whether a point ``x`` (m) moving at ``speed`` (m/s), its surface facing ``facing``, may
+    touch triangle ``tri`` (node ids into ``q``, velocities ``v``) this step: they face each
+    other, its signed gap is above ``-reach`` (deeper behind it is across the body) and below
+    ``reach`` plus what both can close in the step ``h`` (s), and it lies over the face or
+    within ``reach`` of it along the face (beyond a convex edge, below the plane's extension,
+    is outside the body); and the weights of the triangle's nearest point and the distance to
+    it (m)."""
+    xa = q[tri[0]]
+    if wp.dot(facing, wp.cross(q[tri[1]] - xa, q[tri[2]] - xa)) >= wp.float64(0.0):  # not facing
+        return False, wp.vec3d(), wp.float64(1e300)
+    gap, n, w, dist = self_gap(x, xa, q[tri[1]], q[tri[2]])
+    closing = h * (speed + wp.max(wp.length(v[tri[0]]), wp.max(wp.length(v[tri[1]]), wp.length(v[tri[2]]))))
+    beside = wp.sqrt(wp.max(dist * dist - gap * gap, wp.float64(0.0)))  # along the face, past its edge
+    return gap > -reach and dist < reach + closing and beside < reach, w, dist
+
+
+@wp.func
 def self_nearest(mesh: wp.uint64, tri0: int, tri_nodes: wp.array(dtype=wp.vec3i), q: wp.array(dtype=wp.vec3d),
                  v: wp.array(dtype=wp.vec3d), normal: wp.array(dtype=wp.vec3d), rest: wp.array(dtype=wp.vec3d),
                  node: int, reach: wp.float64, apart: wp.float64, h: wp.float64):
@@ -98,13 +117,8 @@ def self_nearest(mesh: wp.uint64, tri0: int, tri_nodes: wp.array(dtype=wp.vec3i)
         tri = tri_nodes[t]
         if tri[0] == node or tri[1] == node or tri[2] == node:
             continue
-        xa = q[tri[0]]
-        if wp.dot(normal[node], wp.cross(q[tri[1]] - xa, q[tri[2]] - xa)) >= wp.float64(0.0):  # not facing
-            continue
-        gap, n, w, dist = self_gap(x, xa, q[tri[1]], q[tri[2]])
-        closing = h * (speed + wp.max(wp.length(v[tri[0]]), wp.max(wp.length(v[tri[1]]), wp.length(v[tri[2]]))))
-        beside = wp.sqrt(wp.max(dist * dist - gap * gap, wp.float64(0.0)))  # along the face, past its edge
-        if gap <= -reach or dist >= reach + closing or beside >= reach or dist >= best_dist:
+        near, w, dist = may_touch(q, v, tri, x, normal[node], speed, reach, h)
+        if not near or dist >= best_dist:
             continue
         near_one = wp.float64(1.0 - CORNER)
         corner = wp.where(w[0] > near_one, tri[0], wp.where(w[1] > near_one, tri[1], wp.where(w[2] > near_one, tri[2],
