@@ -156,3 +156,21 @@ def test_the_trunk_between_two_posts_is_held_by_them_and_steers_its_tip_around(s
         worst = {k: max(v, stats.effector_error[k]) for k, v in worst.items()}
         touched += stats.contacts > 0 and stats.contact_force > 0.0
     assert worst["neck"] > 0.005 and worst["tip"] < 0.5 * worst["neck"] and touched > 10
+
+
+def test_a_frictionless_contact_among_rough_ones_steps_as_the_frictionless_qpcc():
+    """A rough obstacle far away gives the world friction rows; the beam's contact with the
+    frictionless ball then goes through the rounds with the direct model, and must step as the
+    frictionless QPCC does (measured: 7e-10 m)."""
+    options = dict(newton_tolerance=1e-6, newton_iterations=30)
+    plain = ws.Simulator(pressed_beam(), **options)
+    scene = pressed_beam()
+    scene.add_obstacle("far", ws.obstacles.Ball((0.5, 0.5, 0.5), 0.01), mu=0.5)
+    rough = ws.Simulator(scene, **options)
+    assert rough.rows.rows_per_contact(0) == 3
+    for _ in range(10):
+        plain.step()
+        b = rough.step()
+        assert b.qp_status == "optimal"
+        assert np.abs(plain.positions() - rough.positions()).max() < 1e-8
+    assert b.contacts >= 1 and b.friction_force == 0.0

@@ -95,7 +95,7 @@ class FrictionQP:
     def solve(self, state: np.ndarray, direction: np.ndarray) -> StateSolution | None:
         """The QP of the contacts' ``state`` (nc: ``OPEN``, ``STICK``, ``SLIDE``), sliding ones
         along ``direction`` ``(nc, 2)`` (unit, their friction's direction in their tangents),
-        or None when it has no feasible point."""
+        or None when it has no feasible point. A touching contact with ``mu = 0`` slips freely."""
         from qpsolvers import Problem, solve_problem
 
         na, nh, rows = self.na, self.na + self.nb, self.rows
@@ -120,7 +120,7 @@ class FrictionQP:
             n, j = nh + 3 * i, first[int(i)]
             A.append(Wk[n])  # the gap closed
             b.append(-d[n])
-            if state[i] == STICK:  # no slip, the friction inside the polygon
+            if state[i] == STICK and self.mu[i] > 0.0:  # no slip, the friction inside the polygon
                 stuck.append((int(i), len(A)))
                 A += [Wk[n + 1], Wk[n + 2]]
                 b += [-d[n + 1], -d[n + 2]]
@@ -129,14 +129,15 @@ class FrictionQP:
                     row[j + 1:j + 3], row[j] = FACET_NORMAL[k], -self.mu[i]
                     G.append(row)
                     h.append(0.0)
-            else:  # sliding: lambda_t = mu lambda_n d, the slip against it (d . slip <= 0)
+            else:  # sliding (or frictionless): lambda_t = mu lambda_n d, the slip against it (d . slip <= 0)
                 for m in range(2):
                     row = np.zeros(len(keep))
                     row[j + 1 + m], row[j] = 1.0, -self.mu[i] * direction[i, m]
                     A.append(row)
                     b.append(0.0)
-                G.append(direction[i] @ Wk[n + 1:n + 3])
-                h.append(-(direction[i] @ d[n + 1:n + 3]))
+                if self.mu[i] > 0.0:
+                    G.append(direction[i] @ Wk[n + 1:n + 3])
+                    h.append(-(direction[i] @ d[n + 1:n + 3]))
         upper, lower = np.isfinite(rows.dmax), np.isfinite(rows.dmin)
         W_a, d_a = Wk[:na], d[:na]
         G += list(W_a[upper]) + list(-W_a[lower])
@@ -191,7 +192,7 @@ def pivot(qp: FrictionQP, state: np.ndarray, direction: np.ndarray, sol: StateSo
     while pivots < max_pivots:
         scale = max(np.abs(sol.lam_c).max(initial=0.0), np.abs(sol.lam_a).max(initial=0.0), 1e-300)
         tries = [(sol.asks[i], i, OPEN if state[i] != OPEN else STICK, None) for i in range(qp.nc)]
-        for i in np.flatnonzero(state == STICK):
+        for i in np.flatnonzero((state == STICK) & (qp.mu > 0.0)):
             size = float(np.linalg.norm(sol.pull[i]))
             if size > 0.0:  # slipping along pull lowers the objective: the friction opposes that slip
                 tries.append((size, i, SLIDE, -sol.pull[i] / size))
