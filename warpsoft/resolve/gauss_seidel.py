@@ -164,37 +164,37 @@ class GaussSeidel:
         ``friction``): ``host["lam"]`` is updated in place and the sweeps' ``result`` copied to the
         device. On CUDA, one thread per world sweeping many contact rows runs at its single
         thread's latency (docs/performance.md)."""
+        c = self.host_arrays()
+        host["lam"][:] = self._sweep_host(host, self.host, c["direct"], host["lam"], c["result"])
+        self.result.assign(c["result"].numpy())
+
+    def _sweep_host(self, host: dict[str, np.ndarray], inputs: np.ndarray, direct: wp.array, lam0: np.ndarray,
+                    result: wp.array) -> np.ndarray:
+        """The sweeps on Warp's CPU device from one read ``host``, with the row inputs ``inputs``,
+        the worlds flagged in ``direct``, the multipliers starting at ``lam0``; the multipliers."""
         c, cpu = self.host_arrays(), "cpu"
         f64 = lambda a: wp.array(a, dtype=wp.float64, device=cpu)  # noqa: E731
-        lam = f64(host["lam"])
-        self._launch(f64(host["W"]), f64(host["delta_free"]), f64(host["delta"]), f64(self.host), c["row_start"],
-                     wp.array(host["force_rows"], dtype=wp.int32, device=cpu), c["direct"], f64(host["friction"]),
-                     lam, c["result"], c["counts"], c["factor"], c["work"])
-        host["lam"][:] = lam.numpy()
-        self.result.assign(c["result"].numpy())
+        lam = f64(lam0)
+        self._launch(f64(host["W"]), f64(host["delta_free"]), f64(host["delta"]), f64(inputs), c["row_start"],
+                     wp.array(host["force_rows"], dtype=wp.int32, device=cpu), direct, f64(host["friction"]), lam,
+                     result, c["counts"], c["factor"], c["work"])
+        return lam.numpy()
 
     def contacts_at(self, host: dict[str, np.ndarray], world: int, actuators: slice, lam_a: np.ndarray) -> np.ndarray:
         """The direct model's multipliers of ``world``'s force rows (``(rows,)``, the others as in
         ``host["lam"]``) with its actuator rows ``actuators`` held at the forces ``lam_a``: the
         same sweeps on the host (Warp's CPU device) from one read ``host`` (as :meth:`solve_host`),
         the contacts warm-started from ``host["lam"]``."""
-        c, cpu = self.host_arrays(), "cpu"
-        f64 = lambda a: wp.array(a, dtype=wp.float64, device=cpu)  # noqa: E731
+        cpu, k = "cpu", kernels
         inputs = self.host.copy()
-        k = kernels
         inputs[[k.FORCE_MODE, k.VALUE], actuators] = [np.ones(len(lam_a)), lam_a]
         inputs[[k.LO, k.DMIN], actuators], inputs[[k.HI, k.DMAX, k.MAX_STEP], actuators] = -np.inf, np.inf
         direct = np.zeros(self.rows.num_worlds, dtype=np.int32)
         direct[world] = 1
         lam0 = host["lam"].copy()
         lam0[actuators] = lam_a
-        lam = f64(lam0)
-        self._launch(f64(host["W"]), f64(host["delta_free"]), f64(host["delta"]), f64(inputs), c["row_start"],
-                     wp.array(host["force_rows"], dtype=wp.int32, device=cpu),
-                     wp.array(direct, dtype=wp.int32, device=cpu), f64(host["friction"]), lam,
-                     wp.zeros((self.rows.num_worlds, 3), dtype=wp.float64, device=cpu), c["counts"], c["factor"],
-                     c["work"])
-        return lam.numpy()
+        return self._sweep_host(host, inputs, wp.array(direct, dtype=wp.int32, device=cpu), lam0,
+                                wp.zeros((self.rows.num_worlds, 3), dtype=wp.float64, device=cpu))
 
     def _launch(self, W, delta_free, delta_now, inputs, row_start, force_rows, direct, friction, lam, result,
                 counts, factor, work) -> None:

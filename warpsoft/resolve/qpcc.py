@@ -88,7 +88,6 @@ class ContactQP:
         self.d_a, self.d_b, self.d_c = delta_free[a], delta_free[b], delta_free[c]
         self.reg = least_energy(self.W_aa, self.M[:, :na].T @ self.M[:, :na], epsilon)  # (inverse.py's)
         self.diag_c = np.maximum(np.diag(self.W_cc), 1e-300)
-        self.lam_b = np.zeros(nb)  # the attachments' forces (N) of the last solve
 
     def objective(self, lam_a: np.ndarray, lam_c: np.ndarray, lam_b: np.ndarray | None = None) -> float:
         lam_b = np.zeros(self.nb) if lam_b is None else lam_b
