@@ -69,6 +69,9 @@ def locate(nodes: np.ndarray, tets: np.ndarray, points: np.ndarray, names: list[
         p = np.asarray(p, dtype=float)
         _, cand = tree.query(p, k=k)
         cand = np.atleast_1d(cand)
+        cand = cand[cand < len(tets)]  # (the tree answers len(tets) where a distance overflows)
+        if not len(cand):
+            cand = np.arange(len(tets))
         lam = barycentric(nodes, tets[cand], p)
         worst = lam.min(axis=1)
         best = int(np.argmax(worst))
@@ -78,6 +81,9 @@ def locate(nodes: np.ndarray, tets: np.ndarray, points: np.ndarray, names: list[
             worst = lam.min(axis=1)
             best = int(np.argmax(worst))
         e = int(cand[best])
+        if not np.all(np.isfinite(lam[best])):
+            raise SceneError(f"point '{name}' at {p.tolist()} m: its barycentric coordinates in the mesh are not "
+                             "finite (coordinates too large or elements too flat for float64)")
         if worst[best] >= -tol:
             w = np.clip(lam[best], 0.0, None)
             ids[j], weights[j] = tets[e], w / w.sum()
