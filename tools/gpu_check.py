@@ -13,7 +13,8 @@ and the median CG iterations and the most Newton iterations of a step (the finge
 iterates: its graphs of later iterations and line searches are checked too; Hertz and the
 Trunk between two posts check contacts, the latter the QPCC around the graphs; the Grasper, fast
 closing, rigid bodies and kinematic frames: its cube's centre counts as a probe; the swinging
-payload, an attachment; the pebble, a rigid cube's points on a slab's triangles). Then the three
+payload, an attachment; the pebble, a rigid cube's points on a slab's triangles; the swinging
+cantilever, 10-node elements). Then the three
 worlds of tests/test_worlds.py (an inverse Diamond, an inverse Trunk, a Diamond driven
 directly) on CUDA, together and alone. Writes gpu_check.json.
 """
@@ -36,7 +37,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENES = ["scenes/finger.py", "scenes/trunk.py", "scenes/diamond.py", "scenes/finger.py:dt=0.5,mesh_size=0.005",
           "scenes/validation/column.py", "scenes/validation/hertz.py", "scenes/trunk.py:obstacles=True,period=1.0",
           "scenes/grasper.py:dt=0.02,close=0.016", "scenes/validation/payload.py:swing=0.05",
-          "scenes/validation/stack.py", "scenes/validation/pebble.py"]
+          "scenes/validation/stack.py", "scenes/validation/pebble.py",
+          "scenes/validation/cantilever.py:element='quadratic',mesh_size=0.005,static=False,gravity=9.81"]
 RUNS = {
     "cpu_direct": ("cpu", "direct", {}),
     "cuda_pcg_graph": ("cuda", "pcg", {}),

@@ -17,6 +17,7 @@ import numpy as np
 import warp as wp
 
 from warpsoft.kernels.elastic import geometry
+from warpsoft.kernels.elastic.quadratic import vec10i
 
 from .errors import SceneError, call_user
 from .launch import launch
@@ -36,6 +37,28 @@ class BodyInfo:
     elem_start: int
     elem_count: int
     surface: np.ndarray  # (k, 3) global node ids, outward triangles
+    element: str = "corotational"  # its element model (warpsoft/elastic)
+    quadratic: np.ndarray | None = None  # (k, 10) its 10-node elements, body-local node ids (quadratic only)
+
+
+@dataclass
+class ElementGroup:
+    """The elements of one element model over every world (``kind``, a key of
+    :data:`warpsoft.elastic.ELEMENT_MODELS`). Device arrays, ``(count,)``: ``elems`` (vec4i or
+    vec10i, global node ids), ``dm_inv`` (mat33d, 1/m) and ``volume`` (float64, m^3) of the corner
+    tetrahedron, ``mu`` and ``lam`` (float64, Pa), ``world`` (int32). ``elems_np``: ``elems`` on
+    the host, ``(count, k)``; ``start``: where the group's rotations begin in the array of all."""
+
+    kind: str
+    elems: wp.array
+    elems_np: np.ndarray
+    dm_inv: wp.array
+    volume: wp.array
+    mu: wp.array
+    lam: wp.array
+    world: wp.array
+    start: int
+    count: int
 
 
 def finalize(scenes: Scene | Sequence[Scene], device: str | None = None) -> Model:
@@ -89,7 +112,8 @@ class Model:
                 mu.append(bm)
                 lam.append(bl)
                 rho.append(br)
-                self.bodies.append(BodyInfo(body.name, w, n0, m.num_nodes, e0, m.num_elements, m.surface() + n0))
+                self.bodies.append(BodyInfo(body.name, w, n0, m.num_nodes, e0, m.num_elements, m.surface() + n0,
+                                            body.element, m.quadratic))
                 n0 += m.num_nodes
                 e0 += m.num_elements
             node_starts.append(n0)
@@ -115,6 +139,7 @@ class Model:
         self.volume = wp.zeros(self.num_elements, dtype=wp.float64, device=d)
         launch(geometry.tet_rest_shape, self.num_elements, inputs=[self.rest, self.tets],
                outputs=[self.dm_inv, self.volume], device=d)
+        self.element_groups = self._element_groups()
 
         # gravity per node: each world its own
         g = np.array([s.gravity for s in self.scenes])[self.node_world_np]  # (n, 3) m/s^2
@@ -199,6 +224,41 @@ class Model:
         if ids:
             self.probe_nodes = wp.array(np.concatenate(ids), dtype=wp.vec4i, device=d)
             self.probe_weights = wp.array(np.concatenate(wts), dtype=wp.vec4d, device=d)
+
+    def _element_groups(self) -> list[ElementGroup]:
+        """The elastic elements by element model: the tetrahedra of the corotational bodies (the
+        model's own arrays when every body is), then the 10-node elements of the quadratic ones
+        (each over the eight tetrahedra that split it)."""
+        d = self.device
+        linear = [b for b in self.bodies if b.element == "corotational"]
+        quadratic = [b for b in self.bodies if b.element == "quadratic"]
+        if not quadratic:
+            return [ElementGroup("corotational", self.tets, self.tets_np, self.dm_inv, self.volume, self.mu, self.lam,
+                                 self.elem_world, 0, self.num_elements)]
+        groups, start = [], 0
+        mu_np, lam_np = self.mu.numpy(), self.lam.numpy()
+        if linear:
+            idx = np.concatenate([np.arange(b.elem_start, b.elem_start + b.elem_count) for b in linear])
+            f64 = lambda a: wp.array(a[idx], dtype=wp.float64, device=d)  # noqa: E731
+            groups.append(ElementGroup("corotational", wp.array(self.tets_np[idx], dtype=wp.vec4i, device=d),
+                                       self.tets_np[idx], wp.array(self.dm_inv.numpy()[idx], dtype=wp.mat33d, device=d),
+                                       f64(self.volume.numpy()), f64(mu_np), f64(lam_np),
+                                       wp.array(self.elem_world_np[idx], dtype=wp.int32, device=d), 0, len(idx)))
+            start = len(idx)
+        elems, first = [], []
+        for b in quadratic:
+            elems.append(b.quadratic.astype(np.int32) + b.node_start)
+            first.append(b.elem_start + 8 * np.arange(len(b.quadratic)))  # each element's first tetrahedron
+        elems_np, first = np.concatenate(elems), np.concatenate(first)
+        corners = wp.array(elems_np[:, :4], dtype=wp.vec4i, device=d)
+        dm_inv = wp.zeros(len(elems_np), dtype=wp.mat33d, device=d)
+        volume = wp.zeros(len(elems_np), dtype=wp.float64, device=d)
+        launch(geometry.tet_rest_shape, len(elems_np), inputs=[self.rest, corners], outputs=[dm_inv, volume], device=d)
+        groups.append(ElementGroup("quadratic", wp.array(elems_np, dtype=vec10i, device=d), elems_np, dm_inv, volume,
+                                   wp.array(mu_np[first], dtype=wp.float64, device=d),
+                                   wp.array(lam_np[first], dtype=wp.float64, device=d),
+                                   wp.array(self.elem_world_np[first], dtype=wp.int32, device=d), start, len(elems_np)))
+        return groups
 
     @property
     def scene(self) -> Scene:

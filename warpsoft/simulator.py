@@ -132,7 +132,7 @@ class Simulator:
         # Data: the step's work buffers
         n = m.num_nodes
         self.elastic = element_model(m)
-        self.rot = wp.zeros(m.num_elements, dtype=wp.mat33d, device=d)  # element rotations
+        self.rot = wp.zeros(self.elastic.num_elements, dtype=wp.mat33d, device=d)  # element rotations
         self.f_int = wp.zeros(n, dtype=wp.vec3d, device=d)  # N
         self.f_ext = wp.zeros(n, dtype=wp.vec3d, device=d)  # N
         if m.f_const is not None:
@@ -383,7 +383,7 @@ class Simulator:
         """Internal forces (N), ``(n, 3)``, at ``state`` (current by default)."""
         m = self.model
         f = wp.zeros(m.num_nodes, dtype=wp.vec3d, device=m.device)
-        rot = wp.zeros(m.num_elements, dtype=wp.mat33d, device=m.device)
+        rot = wp.zeros(self.elastic.num_elements, dtype=wp.mat33d, device=m.device)
         self.elastic.linearize((state or self.state).q, rot, f)
         return f.numpy()
 

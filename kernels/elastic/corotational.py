@@ -26,7 +26,7 @@ def hooke(eps: wp.mat33d, mu: wp.float64, lam: wp.float64) -> wp.mat33d:
 
 
 @wp.kernel
-def corotational_forces(
+def element_forces(
     q: wp.array(dtype=wp.vec3d),
     tets: wp.array(dtype=wp.vec4i),
     dm_inv: wp.array(dtype=wp.mat33d),

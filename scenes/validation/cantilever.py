@@ -8,14 +8,15 @@ import warpsoft as ws
 
 
 def build(length=0.1, width=0.01, height=0.01, young_modulus=1e6, poisson_ratio=0.3, density=1000.0,
-          gravity=0.0, tip_force=0.0, mesh_size=None, static=True, dt=0.01):
+          gravity=0.0, tip_force=0.0, mesh_size=None, static=True, dt=0.01, element="corotational"):
     """Beam along +x from 0 to ``length`` (m), section ``width`` (y) x ``height`` (z) centred on
-    the axis; ``tip_force`` (N) along -z over the end face; probe ``tip`` at (length, 0, 0)."""
+    the axis; ``tip_force`` (N) along -z over the end face; probe ``tip`` at (length, 0, 0).
+    ``element``: "corotational" (linear tetrahedra) or "quadratic" (10-node ones on the same mesh)."""
     h = mesh_size if mesh_size is not None else min(width, height) / 6  # within 10% of beam theory
     shape = ws.shapes.Box((0.0, -width / 2, -height / 2), (length, width, height))
     scene = ws.Scene("cantilever", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=1 if static else 100)
     beam = scene.add_body("beam", ws.mesh_shape(shape, h, name="beam"),
-                          ws.Material(young_modulus, poisson_ratio, density))
+                          ws.Material(young_modulus, poisson_ratio, density), element=element)
     scene.fix(beam, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9))
     if tip_force:
         scene.add_force(beam, ws.OnPlane((length, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9), (0.0, 0.0, -tip_force),

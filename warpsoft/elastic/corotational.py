@@ -11,6 +11,7 @@ from __future__ import annotations
 import warp as wp
 
 from warpsoft.kernels.elastic import corotational as kernels
+from warpsoft.kernels.linear import warped as warped_kernels
 
 from ..launch import launch
 
@@ -22,52 +23,63 @@ ELEMENT_MAJOR_FROM = 1 << 16
 
 
 class Corotational:
-    """The corotational element model of a :class:`~warpsoft.model.Model`.
+    """The corotational linear tetrahedra of a :class:`~warpsoft.model.Model`: its element
+    group ``group`` (:class:`~warpsoft.model.ElementGroup`, 4 nodes an element).
 
-    Every method takes the element rotations ``rot`` (``(elements,)`` mat33d) of the current
-    linearization, written by :meth:`linearize`.
+    Every method takes the group's element rotations ``rot`` (``(count,)`` mat33d) of the
+    current linearization, written by :meth:`linearize`.
     """
 
     name = "corotational"
+    nodes_per_element = 4
+    kernels = kernels
+    node_rotation_kernel = warped_kernels.accumulate_node_rotations
 
-    def __init__(self, model):
-        self.model = model
+    def __init__(self, model, group):
+        self.model, self.group = model, group
 
     def _material(self) -> list:
-        m = self.model
-        return [m.dm_inv, m.volume, m.mu, m.lam]
+        g = self.group
+        return [g.dm_inv, g.volume, g.mu, g.lam]
 
     def linearize(self, q: wp.array, rot: wp.array, force: wp.array) -> None:
         """Rotations ``rot`` at positions ``q`` (m) and the internal forces (N) accumulated into
         ``force`` (``(n,)`` vec3d, zeroed by the caller)."""
-        m = self.model
-        launch(kernels.corotational_forces, m.num_elements, inputs=[q, m.tets, *self._material()],
-               outputs=[rot, force], device=m.device)
+        m, g = self.model, self.group
+        launch(self.kernels.element_forces, g.count, inputs=[q, g.elems, *self._material()], outputs=[rot, force],
+               device=m.device)
 
     def apply(self, x: wp.array, y: wp.array, rot: wp.array, scale: float, done: wp.array | None = None) -> None:
         """``y[c] += scale K x[c]`` for ``(k, n)`` vec3d ``x`` and ``y`` (N per m of ``x``). ``done``:
         CG scalars ``(k, worlds, slots)``; a column of a world they mark converged is skipped."""
-        m = self.model
-        inputs = [x, m.tets, *self._material(), rot, scale, m.elem_world, done]
-        if x.shape[0] > 1 and (m.device.is_cpu or m.num_elements >= ELEMENT_MAJOR_FROM):
-            launch(kernels.stiffness_product_columns, m.num_elements, inputs=inputs, outputs=[y], device=m.device)
+        m, g = self.model, self.group
+        inputs = [x, g.elems, *self._material(), rot, scale, g.world, done]
+        if x.shape[0] > 1 and (m.device.is_cpu or g.count >= ELEMENT_MAJOR_FROM):
+            launch(self.kernels.stiffness_product_columns, g.count, inputs=inputs, outputs=[y], device=m.device)
             return
-        launch(kernels.stiffness_product, (x.shape[0], m.num_elements), inputs=inputs, outputs=[y], device=m.device)
+        launch(self.kernels.stiffness_product, (x.shape[0], g.count), inputs=inputs, outputs=[y], device=m.device)
 
     def diagonal(self, rot: wp.array, diag: wp.array) -> None:
         """Accumulate the 3x3 diagonal blocks of ``K`` (N/m) per node into ``diag`` ``(n,)`` mat33d."""
-        m = self.model
-        launch(kernels.stiffness_diagonal, m.num_elements, inputs=[m.tets, *self._material(), rot],
-               outputs=[diag], device=m.device)
+        m, g = self.model, self.group
+        launch(self.kernels.stiffness_diagonal, g.count, inputs=[g.elems, *self._material(), rot], outputs=[diag],
+               device=m.device)
 
     def blocks(self, rot: wp.array, blocks: wp.array) -> None:
-        """The sixteen 3x3 blocks (N/m) of each element's ``K``, ``(16 elements,)`` mat33d."""
+        """The ``k^2`` 3x3 blocks (N/m) of each element's ``K`` (``k`` nodes an element),
+        ``(k^2 count,)`` mat33d, block ``k a + b`` of element ``e`` at ``k^2 e + k a + b``."""
         m = self.model
-        launch(kernels.stiffness_blocks, m.num_elements, inputs=[*self._material(), rot], outputs=[blocks],
+        launch(self.kernels.stiffness_blocks, self.group.count, inputs=[*self._material(), rot], outputs=[blocks],
+               device=m.device)
+
+    def node_rotations(self, rot: wp.array, node_sum: wp.array) -> None:
+        """Accumulate ``V_e R_e`` into each node of element ``e``, ``node_sum`` ``(n,)`` mat33d."""
+        m, g = self.model, self.group
+        launch(self.node_rotation_kernel, g.count, inputs=[g.elems, g.volume, rot], outputs=[node_sum],
                device=m.device)
 
     def energy(self, q: wp.array, out: wp.array) -> None:
         """Accumulate the elastic energy (J) at positions ``q`` into ``out[0]``."""
-        m = self.model
-        launch(kernels.elastic_energy, m.num_elements, inputs=[q, m.tets, *self._material()], outputs=[out],
+        m, g = self.model, self.group
+        launch(self.kernels.elastic_energy, g.count, inputs=[q, g.elems, *self._material()], outputs=[out],
                device=m.device)

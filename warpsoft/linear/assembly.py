@@ -32,13 +32,11 @@ class Assembly:
     def __init__(self, operator: SystemOperator):
         self.op = operator
         model = operator.model
-        tets = model.tets_np.astype(np.int64)
-        a = np.arange(4)
-        # entry (e, a, b, i, j) of the (m, 16, 9) block array -> (row, col) in the full matrix
-        rows = 3 * tets[:, a][:, :, None, None, None] + np.arange(3)[None, None, None, :, None]
-        cols = 3 * tets[:, a][:, None, :, None, None] + np.arange(3)[None, None, None, None, :]
-        rows = np.broadcast_to(rows, (len(tets), 4, 4, 3, 3)).ravel()
-        cols = np.broadcast_to(cols, (len(tets), 4, 4, 3, 3)).ravel()
+        pairs = operator.elastic.block_nodes()  # (blocks, 2): the nodes each element block couples
+        # entry (block, i, j) of the (blocks, 9) array -> (row, col) in the full matrix
+        rows = 3 * pairs[:, 0, None, None] + np.arange(3)[None, :, None]
+        cols = 3 * pairs[:, 1, None, None] + np.arange(3)[None, None, :]
+        rows, cols = (a.ravel() for a in np.broadcast_arrays(rows, cols))
         free = model.mask_np.ravel() > 0
         self.free = np.flatnonzero(free)
         self.size = len(self.free)
@@ -57,7 +55,7 @@ class Assembly:
         self.diagonal = self.indptr[:-1]  # the first entry of each lower column is its diagonal
         assert np.array_equal(self.indices[self.diagonal], np.arange(self.size))
         self.mass = None if model.mass is None else np.repeat(model.mass_np, 3)[self.free]
-        self.blocks = wp.zeros(16 * model.num_elements, dtype=wp.mat33d, device=model.device)
+        self.blocks = wp.zeros(operator.elastic.num_blocks, dtype=wp.mat33d, device=model.device)
 
     def values(self) -> np.ndarray:
         """The ``nnz`` values of the lower triangle at the operator's current rotations and scales."""

@@ -84,6 +84,11 @@ class WorldBlocks(WarpedFrames):
             raise ValueError(f"WorldBlocks: tiled_from must be at least 1, got {tiled_from!r}")
         self.tiled_from = int(tiled_from)
         self.dtype = wp.float64 if precision == "float64" else wp.float32
+        if operator.elastic.kinds != ["corotational"]:
+            quad = next(b for b in m.bodies if b.element != "corotational")
+            raise SceneError(f"WorldBlocks: body '{quad.name}' of world {quad.world} has {quad.element} elements; the "
+                             "per-world blocks preconditioner takes linear tetrahedra only so far: use "
+                             "preconditioner='host' or 'dense', or solver='direct'")
         n = m.num_nodes
         # the flat layout: world w's 3 n_w DOFs padded to a multiple of S * UNROLL rows (and of
         # WIDTH, and of the tiles' rows)

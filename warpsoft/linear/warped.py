@@ -79,8 +79,7 @@ class WarpedFrames:
         """Per linearization: node rotations from the element rotations; refactorize if due."""
         m = self.op.model
         self.node_sum.zero_()
-        launch(kernels.accumulate_node_rotations, m.num_elements, inputs=[m.tets, m.volume, self.op.rot],
-               outputs=[self.node_sum], device=m.device)
+        self.op.elastic.node_rotations(self.op.rot, self.node_sum)
         launch(kernels.relative_node_rotations, m.num_nodes, inputs=[self.node_sum, self.frame],
                outputs=[self.node_rot, self.q_rot], device=m.device)
         if self._stale:

@@ -13,6 +13,12 @@ from ..errors import MeshError
 
 # Faces of a positively oriented tetrahedron (i0, i1, i2, i3), each listed with an outward normal.
 TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]], dtype=np.int64)
+# A quadratic element's edges, in the order of its nodes 4-9
+TET_EDGES = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]], dtype=np.int64)
+# A quadratic element (corners 0-3, midpoints 4-9) split into eight tetrahedra: one at each
+# corner, and the inner octahedron cut along the diagonal 5-8 (midpoints of 02 and 13)
+SUBDIVISION = np.array([[0, 4, 5, 6], [4, 1, 7, 8], [5, 7, 2, 9], [6, 8, 9, 3],
+                        [5, 8, 4, 7], [5, 8, 7, 9], [5, 8, 9, 6], [5, 8, 6, 4]], dtype=np.int64)
 
 
 def signed_volumes(nodes: np.ndarray, tets: np.ndarray) -> np.ndarray:
@@ -23,18 +29,23 @@ def signed_volumes(nodes: np.ndarray, tets: np.ndarray) -> np.ndarray:
 
 @dataclass
 class TetMesh:
-    """A linear tetrahedral mesh.
+    """A linear tetrahedral mesh, or a quadratic one (:meth:`quadratic_refined`).
 
     Attributes:
         nodes: rest positions, shape ``(n, 3)``, float64 (m).
-        tets: node ids of each element, shape ``(m, 4)``, int32, positive volumes.
+        tets: node ids of each element, shape ``(m, 4)``, int32, positive volumes. In a
+            quadratic mesh, the eight tetrahedra that split each quadratic element, element after
+            element: what mappings, surfaces, contacts and drawings see.
         name: a label used in error messages.
+        quadratic: None, or the 10-node elements ``(m / 8, 10)`` int32 (corners, then the
+            midpoints of edges 01, 02, 03, 12, 13, 23) that the elastic forces use.
     """
 
     nodes: np.ndarray
     tets: np.ndarray
     name: str = "mesh"
     _surface: np.ndarray | None = field(default=None, repr=False, compare=False)
+    quadratic: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         nodes = np.asarray(self.nodes, dtype=np.float64)
@@ -70,6 +81,26 @@ class TetMesh:
                 f"({len(neg)} inverted element(s)); reorder its nodes or build with TetMesh.oriented(...)"
             )
         self.nodes, self.tets = nodes, tets.astype(np.int32)
+        if self.quadratic is not None:
+            quad = np.asarray(self.quadratic)
+            if quad.shape != (len(tets) // 8, 10) or 8 * len(quad) != len(tets):
+                raise MeshError(f"mesh '{self.name}': quadratic elements must have shape ({len(tets) // 8}, 10) "
+                                f"(eight tetrahedra each), got {quad.shape}")
+            self.quadratic = quad.astype(np.int32)
+
+    def quadratic_refined(self) -> TetMesh:
+        """The mesh of 10-node elements on this one: a node at each edge's midpoint (straight
+        edges), each element split into eight tetrahedra at them (:data:`SUBDIVISION`, oriented)."""
+        if self.quadratic is not None:
+            return self
+        pairs = np.sort(self.tets[:, TET_EDGES].reshape(-1, 2), axis=1)
+        edges, which = np.unique(pairs, axis=0, return_inverse=True)
+        nodes = np.concatenate([self.nodes, 0.5 * (self.nodes[edges[:, 0]] + self.nodes[edges[:, 1]])])
+        elems = np.concatenate([self.tets, self.num_nodes + which.reshape(len(self.tets), 6)], axis=1)
+        sub = elems[:, SUBDIVISION].reshape(-1, 4)
+        neg = signed_volumes(nodes, sub) < 0
+        sub[neg] = sub[neg][:, [0, 2, 1, 3]]
+        return TetMesh(nodes, sub, name=self.name, quadratic=elems)
 
     @classmethod
     def oriented(cls, nodes, tets, name: str = "mesh", drop_unused: bool = True) -> TetMesh:
@@ -118,7 +149,8 @@ class TetMesh:
         if not np.isfinite(scale) or scale <= 0:
             raise MeshError(f"mesh '{self.name}': scale must be a finite number > 0, got {scale!r}")
         nodes = scale * self.nodes @ R.T + np.asarray(translation, dtype=float)
-        return TetMesh(nodes, self.tets.copy(), name=self.name)
+        quad = None if self.quadratic is None else self.quadratic.copy()
+        return TetMesh(nodes, self.tets.copy(), name=self.name, quadratic=quad)
 
 
 def rotation_about(axis: str, degrees: float) -> np.ndarray:

@@ -54,6 +54,7 @@ class Body:
     material: Material
     total_mass: float | None = None
     overrides: list[tuple[Region, Material]] = field(default_factory=list)
+    element: str = "corotational"
 
     def set_material(self, region: Region, material: Material) -> Body:
         """Give the elements whose centroid lies in ``region`` another material."""
@@ -67,10 +68,14 @@ class Body:
         return self
 
     def element_materials(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per element ``(mu, lambda, density)`` in Pa, Pa, kg/m^3, each shape ``(m,)``."""
+        """Per tetrahedron of the mesh ``(mu, lambda, density)`` in Pa, Pa, kg/m^3, each shape
+        ``(m,)``. In a quadratic mesh, the eight of an element share its material, chosen by the
+        element's centroid."""
         m = self.mesh.num_elements
         mats = [self.material] * m
         centroids = self.mesh.nodes[self.mesh.tets].mean(axis=1)
+        if self.mesh.quadratic is not None:
+            centroids = np.repeat(self.mesh.nodes[self.mesh.quadratic[:, :4]].mean(axis=1), 8, axis=0)
         for region, mat in self.overrides:
             for e in np.flatnonzero(region(centroids)):
                 mats[e] = mat
@@ -153,21 +158,31 @@ class Scene:
         self.params: dict = {}
 
     # ---- components -------------------------------------------------------------------
-    def add_body(self, name: str, mesh: TetMesh, material: Material, total_mass: float | None = None) -> Body:
+    def add_body(self, name: str, mesh: TetMesh, material: Material, total_mass: float | None = None,
+                 element: str = "corotational") -> Body:
         """Add a deformable body. ``total_mass`` (kg), if given, sets a uniform density
-        ``total_mass / volume`` in place of the material's."""
+        ``total_mass / volume`` in place of the material's. ``element``: "corotational" (linear
+        tetrahedra) or "quadratic" (10-node tetrahedra on the same mesh: a node is added at each
+        edge's midpoint; they do not lock in bending or near incompressibility, see
+        ``warpsoft/elastic/quadratic.py``)."""
         if any(b.name == name for b in self.bodies):
             raise SceneError(f"scene '{self.name}': a body named '{name}' exists already")
         if not isinstance(mesh, TetMesh):
             raise SceneError(f"body '{name}': mesh must be a TetMesh, got {type(mesh).__name__}")
         if not isinstance(material, Material):
             raise SceneError(f"body '{name}': material must be a Material, got {material!r}")
+        if element not in ("corotational", "quadratic"):
+            raise SceneError(f"body '{name}': element must be 'corotational' or 'quadratic', got {element!r}")
+        if element == "quadratic":
+            mesh = mesh.quadratic_refined()
+        elif mesh.quadratic is not None:
+            raise SceneError(f"body '{name}': its mesh has quadratic elements; give element='quadratic'")
         if total_mass is not None:
             total_mass = _finite(total_mass, f"body '{name}': total_mass")
             if total_mass <= 0:
                 raise SceneError(f"body '{name}': total_mass must be > 0 kg, got {total_mass!r}")
             material = Material(material.young_modulus, material.poisson_ratio, total_mass / mesh.volume)
-        body = Body(name, mesh, material, total_mass)
+        body = Body(name, mesh, material, total_mass, element=element)
         self.bodies.append(body)
         return body
 
