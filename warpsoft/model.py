@@ -79,7 +79,9 @@ class Model:
     (``warpsoft/drive.py``); ``rigid`` the rigid bodies ``(world, RigidBody)`` in model order.
     Rigid bodies (device, ``(bodies,)``, only when some world has them): ``rigid_world``,
     ``rigid_inv_mass`` (1/kg), ``rigid_inertia`` (mat33d, kg m^2, the body's frame),
-    ``rigid_gravity`` (m/s^2).
+    ``rigid_gravity`` (m/s^2). A body of 10-node elements puts in ``tets`` the eight tetrahedra
+    that split each element (for mappings, masses, surfaces and contacts); the elastic forces
+    come from ``element_groups`` (:class:`ElementGroup`, one per element model in use).
     """
 
     def __init__(self, scenes: Scene | Sequence[Scene], device: str | None = None):
