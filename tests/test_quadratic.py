@@ -165,6 +165,19 @@ def test_mass_of_a_quadratic_body_is_its_density_times_volume():
     assert np.all(model.mass_np > 0)
 
 
+def test_a_region_gives_its_material_to_whole_10_node_elements():
+    """The eight tetrahedra of an element share its material, chosen by the element's centroid."""
+    scene, body = quadratic_box(divisions=(4, 1, 1))
+    body.set_material(ws.InBox((0.0, 0.0, 0.0), (0.01, 0.01, 0.01)), ws.Material(5e6, 0.45, 1000.0))
+    mu = body.element_materials()[0].reshape(-1, 8)
+    assert np.all(mu == mu[:, :1])  # whole elements
+    soft, stiff = E / (2 * 1.45), 5e6 / (2 * 1.45)
+    np.testing.assert_allclose(np.unique(mu), [soft, stiff])
+    half = body.mesh.nodes[body.mesh.quadratic[:, :4]].mean(axis=1)[:, 0] < 0.01
+    np.testing.assert_allclose(mu[half, 0], stiff)
+    np.testing.assert_allclose(mu[~half, 0], soft)
+
+
 def test_a_quadratic_mesh_needs_the_quadratic_element():
     quad = ws.box_grid((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (1, 1, 1)).quadratic_refined()
     with pytest.raises(ws.SceneError, match="element='quadratic'"):

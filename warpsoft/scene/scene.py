@@ -61,11 +61,16 @@ class Body:
         if not isinstance(material, Material):
             raise SceneError(f"body '{self.name}': set_material expects a Material, got {material!r}")
         region = as_region(region, f"body '{self.name}': set_material's region")
-        centroids = self.mesh.nodes[self.mesh.tets].mean(axis=1)
-        if not np.any(region(centroids)):
+        if not np.any(region(self._centroids())):
             raise SceneError(f"body '{self.name}': set_material region {region!r} contains no element centroid")
         self.overrides.append((region, material))
         return self
+
+    def _centroids(self) -> np.ndarray:
+        """Each tetrahedron's centroid ``(m, 3)`` (m); in a quadratic mesh, its element's."""
+        if self.mesh.quadratic is not None:
+            return np.repeat(self.mesh.nodes[self.mesh.quadratic[:, :4]].mean(axis=1), 8, axis=0)
+        return self.mesh.nodes[self.mesh.tets].mean(axis=1)
 
     def element_materials(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per tetrahedron of the mesh ``(mu, lambda, density)`` in Pa, Pa, kg/m^3, each shape
@@ -73,9 +78,7 @@ class Body:
         element's centroid."""
         m = self.mesh.num_elements
         mats = [self.material] * m
-        centroids = self.mesh.nodes[self.mesh.tets].mean(axis=1)
-        if self.mesh.quadratic is not None:
-            centroids = np.repeat(self.mesh.nodes[self.mesh.quadratic[:, :4]].mean(axis=1), 8, axis=0)
+        centroids = self._centroids()
         for region, mat in self.overrides:
             for e in np.flatnonzero(region(centroids)):
                 mats[e] = mat
