@@ -31,6 +31,12 @@ QUAD_B = wp.constant(wp.float64(0.1381966011250105))
 
 
 @wp.func
+def corner_gradients(Di: wp.mat33d):
+    """The four corner gradients ``g_0 .. g_3`` (m^-1) from ``Dm^-1``."""
+    return shape_gradient(Di, 0), shape_gradient(Di, 1), shape_gradient(Di, 2), shape_gradient(Di, 3)
+
+
+@wp.func
 def pick(g0: wp.vec3d, g1: wp.vec3d, g2: wp.vec3d, g3: wp.vec3d, i: int) -> wp.vec3d:
     """``g_i`` of the four corner gradients."""
     if i == 1:
@@ -105,6 +111,15 @@ def rotated_strain(R: wp.mat33d, F: wp.mat33d) -> wp.mat33d:
     return wp.float64(0.5) * (RF + wp.transpose(RF)) - wp.identity(n=3, dtype=wp.float64)
 
 
+@wp.func
+def node_force(P0: wp.mat33d, P1: wp.mat33d, P2: wp.mat33d, P3: wp.mat33d, g0: wp.vec3d, g1: wp.vec3d, g2: wp.vec3d,
+               g3: wp.vec3d, a: int) -> wp.vec3d:
+    """``sum_q P_q grad N_a(q)``: node ``a``'s share of the four points' stresses ``P_q`` (weighted,
+    rotated back)."""
+    return (P0 * quad_gradient(g0, g1, g2, g3, a, 0) + P1 * quad_gradient(g0, g1, g2, g3, a, 1)
+            + P2 * quad_gradient(g0, g1, g2, g3, a, 2) + P3 * quad_gradient(g0, g1, g2, g3, a, 3))
+
+
 @wp.kernel
 def element_forces(
     q: wp.array(dtype=wp.vec3d),
@@ -120,10 +135,7 @@ def element_forces(
     e = wp.tid()
     t = elems[e]
     Di = dm_inv[e]
-    g0 = shape_gradient(Di, 0)
-    g1 = shape_gradient(Di, 1)
-    g2 = shape_gradient(Di, 2)
-    g3 = shape_gradient(Di, 3)
+    g0, g1, g2, g3 = corner_gradients(Di)
     R = polar_rotation(mean_gradient(q, t, g0, g1, g2, g3))
     rot[e] = R
     w = wp.float64(0.25) * volume[e]
@@ -132,8 +144,7 @@ def element_forces(
     P2 = w * (R * hooke(rotated_strain(R, point_gradient(q, t, g0, g1, g2, g3, 2)), mu[e], lam[e]))
     P3 = w * (R * hooke(rotated_strain(R, point_gradient(q, t, g0, g1, g2, g3, 3)), mu[e], lam[e]))
     for a in range(10):
-        f = (P0 * quad_gradient(g0, g1, g2, g3, a, 0) + P1 * quad_gradient(g0, g1, g2, g3, a, 1)
-             + P2 * quad_gradient(g0, g1, g2, g3, a, 2) + P3 * quad_gradient(g0, g1, g2, g3, a, 3))
+        f = node_force(P0, P1, P2, P3, g0, g1, g2, g3, a)
         wp.atomic_sub(force, t[a], f)
 
 
@@ -158,8 +169,7 @@ def add_element_product(x: wp.array2d(dtype=wp.vec3d), c: int, t: vec10i, R: wp.
     P2 = s * (R * hooke(column_strain(x, c, t, Rt, g0, g1, g2, g3, 2), mu, lam))
     P3 = s * (R * hooke(column_strain(x, c, t, Rt, g0, g1, g2, g3, 3), mu, lam))
     for a in range(10):
-        f = (P0 * quad_gradient(g0, g1, g2, g3, a, 0) + P1 * quad_gradient(g0, g1, g2, g3, a, 1)
-             + P2 * quad_gradient(g0, g1, g2, g3, a, 2) + P3 * quad_gradient(g0, g1, g2, g3, a, 3))
+        f = node_force(P0, P1, P2, P3, g0, g1, g2, g3, a)
         wp.atomic_add(y, c, t[a], f)
 
 
@@ -205,10 +215,7 @@ def stiffness_product_columns(
     e = wp.tid()
     w = world[e]
     Di = dm_inv[e]
-    g0 = shape_gradient(Di, 0)
-    g1 = shape_gradient(Di, 1)
-    g2 = shape_gradient(Di, 2)
-    g3 = shape_gradient(Di, 3)
+    g0, g1, g2, g3 = corner_gradients(Di)
     s = wp.float64(0.25) * scale * volume[e]
     for c in range(x.shape[0]):
         if not column_done(done, c, w):
@@ -235,10 +242,7 @@ def stiffness_diagonal(
     e = wp.tid()
     t = elems[e]
     Di = dm_inv[e]
-    g0 = shape_gradient(Di, 0)
-    g1 = shape_gradient(Di, 1)
-    g2 = shape_gradient(Di, 2)
-    g3 = shape_gradient(Di, 3)
+    g0, g1, g2, g3 = corner_gradients(Di)
     R = rot[e]
     w = wp.float64(0.25) * volume[e]
     for a in range(10):
@@ -262,10 +266,7 @@ def stiffness_blocks(
     ``blocks[100 e + 10 a + b] = sum_q (V/4) K0(R grad N_a(q), R grad N_b(q))`` (N/m)."""
     e = wp.tid()
     Di = dm_inv[e]
-    g0 = shape_gradient(Di, 0)
-    g1 = shape_gradient(Di, 1)
-    g2 = shape_gradient(Di, 2)
-    g3 = shape_gradient(Di, 3)
+    g0, g1, g2, g3 = corner_gradients(Di)
     R = rot[e]
     w = wp.float64(0.25) * volume[e]
     for a in range(10):
@@ -293,18 +294,12 @@ def elastic_energy(
     e = wp.tid()
     t = elems[e]
     Di = dm_inv[e]
-    g0 = shape_gradient(Di, 0)
-    g1 = shape_gradient(Di, 1)
-    g2 = shape_gradient(Di, 2)
-    g3 = shape_gradient(Di, 3)
+    g0, g1, g2, g3 = corner_gradients(Di)
     R = polar_rotation(mean_gradient(q, t, g0, g1, g2, g3))
     w = wp.float64(0.0)
     for p in range(4):
         eps = rotated_strain(R, point_gradient(q, t, g0, g1, g2, g3, p))
-        sig = hooke(eps, mu[e], lam[e])
-        for i in range(3):
-            for j in range(3):
-                w += eps[i, j] * sig[i, j]
+        w += wp.ddot(eps, hooke(eps, mu[e], lam[e]))
     wp.atomic_add(energy, 0, wp.float64(0.125) * volume[e] * w)
 
 
