@@ -229,24 +229,29 @@ class Model:
 
     def _element_groups(self) -> list[ElementGroup]:
         """The elastic elements by element model: the tetrahedra of the corotational bodies (the
-        model's own arrays when every body is), then the 10-node elements of the quadratic ones
-        (each over the eight tetrahedra that split it)."""
+        model's own arrays when every body is), then those of the Neo-Hookean ones, then the
+        10-node elements of the quadratic ones (each over the eight tetrahedra that split it)."""
         d = self.device
-        linear = [b for b in self.bodies if b.element == "corotational"]
-        quadratic = [b for b in self.bodies if b.element == "quadratic"]
-        if not quadratic:
+        if all(b.element == "corotational" for b in self.bodies):
             return [ElementGroup("corotational", self.tets, self.tets_np, self.dm_inv, self.volume, self.mu, self.lam,
                                  self.elem_world, 0, self.num_elements)]
         groups, start = [], 0
         mu_np, lam_np = self.mu.numpy(), self.lam.numpy()
-        if linear:
-            idx = np.concatenate([np.arange(b.elem_start, b.elem_start + b.elem_count) for b in linear])
-            f64 = lambda a: wp.array(a[idx], dtype=wp.float64, device=d)  # noqa: E731
-            groups.append(ElementGroup("corotational", wp.array(self.tets_np[idx], dtype=wp.vec4i, device=d),
+        for kind in ("corotational", "neohookean"):  # linear tetrahedra: the model's, by index
+            bodies = [b for b in self.bodies if b.element == kind]
+            if not bodies:
+                continue
+            idx = np.concatenate([np.arange(b.elem_start, b.elem_start + b.elem_count) for b in bodies])
+            volume, mu, lam = (wp.array(a[idx], dtype=wp.float64, device=d) for a in (self.volume.numpy(), mu_np,
+                                                                                     lam_np))
+            groups.append(ElementGroup(kind, wp.array(self.tets_np[idx], dtype=wp.vec4i, device=d),
                                        self.tets_np[idx], wp.array(self.dm_inv.numpy()[idx], dtype=wp.mat33d, device=d),
-                                       f64(self.volume.numpy()), f64(mu_np), f64(lam_np),
-                                       wp.array(self.elem_world_np[idx], dtype=wp.int32, device=d), 0, len(idx)))
-            start = len(idx)
+                                       volume, mu, lam, wp.array(self.elem_world_np[idx], dtype=wp.int32, device=d),
+                                       start, len(idx)))
+            start += len(idx)
+        quadratic = [b for b in self.bodies if b.element == "quadratic"]
+        if not quadratic:
+            return groups
         elems, first = [], []
         for b in quadratic:
             elems.append(b.quadratic.astype(np.int32) + b.node_start)

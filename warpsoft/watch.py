@@ -65,7 +65,8 @@ def inverted_elements(sim: Simulator, stats: StepStats, host: dict[str, np.ndarr
         if begins(sim, ("inverted", w), ws.inverted_elements > 0):
             stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: {ws.inverted_elements} element(s) turned "
                                   "inside out (det F <= 0): the material is too soft for the loads, or the step too "
-                                  "large; the corotational model keeps going, but the result is not physical there")
+                                  "large; the step goes on (the element models turn inverted elements back), but the "
+                                  "result is not physical there")
 
 
 def contacts(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarray]) -> None:

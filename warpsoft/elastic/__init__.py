@@ -12,9 +12,10 @@ import numpy as np
 import warp as wp
 
 from .corotational import Corotational
+from .neohookean import NeoHookean
 from .quadratic import Quadratic
 
-ELEMENT_MODELS = {"corotational": Corotational, "quadratic": Quadratic}
+ELEMENT_MODELS = {"corotational": Corotational, "neohookean": NeoHookean, "quadratic": Quadratic}
 
 
 class Elements:
@@ -92,4 +93,4 @@ def element_model(model) -> Elements:
     return Elements(model)
 
 
-__all__ = ["ELEMENT_MODELS", "Corotational", "Elements", "Quadratic", "element_model"]
+__all__ = ["ELEMENT_MODELS", "Corotational", "Elements", "NeoHookean", "Quadratic", "element_model"]

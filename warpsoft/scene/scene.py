@@ -23,6 +23,7 @@ from .regions import Region, as_region
 from .rigid import Attachment, RigidBody, make_rigid
 
 Vec3 = tuple[float, float, float]
+ELEMENTS = ("corotational", "quadratic", "neohookean")  # the element models a body may choose (warpsoft/elastic)
 
 
 def _finite(value, what: str) -> float:
@@ -165,17 +166,19 @@ class Scene:
                  element: str = "corotational") -> Body:
         """Add a deformable body. ``total_mass`` (kg), if given, sets a uniform density
         ``total_mass / volume`` in place of the material's. ``element``: "corotational" (linear
-        tetrahedra) or "quadratic" (10-node tetrahedra on the same mesh: a node is added at each
+        tetrahedra), "quadratic" (10-node tetrahedra on the same mesh: a node is added at each
         edge's midpoint; they do not lock in bending or near incompressibility, see
-        ``warpsoft/elastic/quadratic.py``)."""
+        ``warpsoft/elastic/quadratic.py``) or "neohookean" (linear tetrahedra of stable
+        Neo-Hookean material: the same at small strain, hyperelastic at large strain and robust
+        to inversion, see ``warpsoft/elastic/neohookean.py``)."""
         if any(b.name == name for b in self.bodies):
             raise SceneError(f"scene '{self.name}': a body named '{name}' exists already")
         if not isinstance(mesh, TetMesh):
             raise SceneError(f"body '{name}': mesh must be a TetMesh, got {type(mesh).__name__}")
         if not isinstance(material, Material):
             raise SceneError(f"body '{name}': material must be a Material, got {material!r}")
-        if element not in ("corotational", "quadratic"):
-            raise SceneError(f"body '{name}': element must be 'corotational' or 'quadratic', got {element!r}")
+        if element not in ELEMENTS:
+            raise SceneError(f"body '{name}': element must be one of {', '.join(map(repr, ELEMENTS))}, got {element!r}")
         if element == "quadratic":
             mesh = mesh.quadratic_refined()
         elif mesh.quadratic is not None:
