@@ -241,3 +241,24 @@ def test_an_unknown_element_is_refused_by_name():
     with pytest.raises(ws.SceneError, match="'neohookean'.*got 'mooney'"):
         box_scene("mooney")
 
+
+def test_stifface_keeps_the_pressed_point_where_it_rests(scene_module):
+    """The fingertip presses 1 N on the block's top: with its cables held at their rest length the
+    top sinks by more than half a millimetre; the inverse model shortens them (within their
+    bounds, each in tension) until the pressed point stays where it rests, also sideways."""
+    stifface = scene_module("scenes/stifface.py")
+    held = {"steps": 35, "ramp_time": 0.5}
+    passive = ws.Simulator(stifface.build(mode="direct", **held))
+    for _ in range(35):
+        passive.step()
+    sunk = 0.015 - passive.probe_positions()["top"][2]
+    assert sunk > 5e-4
+    sim = ws.Simulator(stifface.build(**held))
+    for _ in range(35):
+        stats = sim.step()
+    np.testing.assert_allclose(sim.probe_positions()["top"], [0.0, 0.0, 0.015], atol=0.01 * sunk)
+    delta = np.array(list(stats.worlds[0].actuator_delta.values()))
+    tension = np.array(list(stats.worlds[0].actuator_lambda.values()))
+    assert delta.min() > 1e-3 and delta.max() <= 0.01 + 1e-9
+    assert np.all(tension > 0.0)
+    assert stats.inverted_elements == 0

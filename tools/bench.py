@@ -54,6 +54,10 @@ SCENES = [
     ("cantilever", "scenes/validation/cantilever.py", SWINGING_BEAM),
     ("cantilever_quadratic", "scenes/validation/cantilever.py", SWINGING_BEAM | {"element": "quadratic",
                                                                                  "mesh_size": 0.005}),
+    # the fingertip pressing the silicone block while the inverse model pulls its cables: stable
+    # Neo-Hookean elements, then the same scene on corotational ones (what the material costs)
+    ("stifface", "scenes/stifface.py", {}, 20),
+    ("stifface_corotational", "scenes/stifface.py", {"element": "corotational"}, 20),
 ]
 
 # SOFA SoftRobots, Table 1 of Coevoet et al. 2017 (Intel i5-4590, one thread), ms per step
