@@ -11,7 +11,8 @@ def build(length=0.1, width=0.01, height=0.01, young_modulus=1e6, poisson_ratio=
           gravity=0.0, tip_force=0.0, mesh_size=None, static=True, dt=0.01, element="corotational"):
     """Beam along +x from 0 to ``length`` (m), section ``width`` (y) x ``height`` (z) centred on
     the axis; ``tip_force`` (N) along -z over the end face; probe ``tip`` at (length, 0, 0).
-    ``element``: "corotational" (linear tetrahedra) or "quadratic" (10-node ones on the same mesh)."""
+    ``element``: "corotational" (linear tetrahedra), "quadratic" (10-node ones on the same mesh) or
+    "neohookean" (linear tetrahedra of stable Neo-Hookean material)."""
     h = mesh_size if mesh_size is not None else min(width, height) / 6  # within 10% of beam theory
     shape = ws.shapes.Box((0.0, -width / 2, -height / 2), (length, width, height))
     scene = ws.Scene("cantilever", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=1 if static else 100)
