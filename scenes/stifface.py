@@ -1,10 +1,12 @@
-"""Stifface (after the SoftRobots paper's haptic interface): a silicone block, its base held,
-with four cables running under its top face, two along x and two along y around its centre,
-each anchored on the far side and pulled from a motor beyond the near one. A fingertip
-presses the top's centre; the inverse model shortens the cables so that the pressed point stays
-at its target height (by default where it rests): pulled taut, the cables straighten under the
-finger and lift the surface back. The block is of stable Neo-Hookean silicone (the press
-deforms it by tens of percent), quasi-static. z is up; the top face's centre is the effector.
+"""Stifface (after the SoftRobots paper's haptic interface; the geometry here is ours, the
+reference folder has no Stifface mesh): a silicone block, its base held, with four cables
+running under its top face, two along x and two along y around its centre, each anchored on
+the far side and pulled from a motor beyond the near one. A fingertip presses the top's centre;
+the inverse model shortens the cables so that the pressed point stays at its target (by
+default where it rests): shortened, they squeeze the block's upper layer, which, nearly
+incompressible, rises, and they straighten where the finger bowed them. The block is of stable
+Neo-Hookean silicone (around the cables' anchors it is squeezed to about half its volume),
+quasi-static. z is up; the top face's centre is the effector.
 """
 
 import math
@@ -20,11 +22,10 @@ def build(size=0.04, height=0.015, cable_depth=0.006, cable_offset=0.005, young_
     cables ``cable_depth`` (m) under the top, ``cable_offset`` (m) either side of its centre
     lines. The fingertip presses ``press`` (N, down) on the top within ``finger_radius`` (m) of
     its centre, reached linearly over ``ramp_time`` (s) and held. ``mode="inverse"``: the cables
-    keep the top's centre at ``target_height`` (m; None: its rest height ``height``) along
-    ``axes`` (by default also where it rests sideways), each
-    shortening within [0, ``max_cable_displacement``] m and by at most ``max_cable_step`` m a
-    step. ``mode="direct"``: every cable shortens by ``cable_displacement`` (m) over the same
-    ramp. ``element``: the block's element model."""
+    keep the top's centre at ``(0, 0, target_height)`` (m; None: its rest height ``height``)
+    along ``axes``, each shortening within [0, ``max_cable_displacement``] m and by at most
+    ``max_cable_step`` m a step. ``mode="direct"``: every cable shortens by
+    ``cable_displacement`` (m) over the same ramp. ``element``: the block's element model."""
     if mode not in ("direct", "inverse"):
         raise ws.SceneError(f"stifface: mode must be 'direct' or 'inverse', got {mode!r}")
     if not 0.0 < cable_depth < height:
