@@ -25,7 +25,9 @@ element) a direction ``D = U^T dF V`` splits into
 Every negative eigenvalue is clamped to zero (the projected Newton of Teran et al. 2005): the
 tangent stays positive semi-definite for the step's solvers, also under compression and for
 inverted elements, and equals the exact Hessian wherever that is already positive. At rest the
-twists (rotations) have eigenvalue zero and the rest is Hooke's law.
+twists (rotations) have eigenvalue zero and the rest is Hooke's law. The scaling block is
+diagonalized (``eig3``) only where it is not positive definite; most elements' is, and is kept
+whole.
 """
 
 import warp as wp
@@ -83,6 +85,13 @@ def flip_last_column(M: wp.mat33d) -> wp.mat33d:
 
 
 @wp.func
+def positive_definite(H: wp.mat33d) -> bool:
+    """Whether a symmetric 3x3 matrix is positive definite: its leading minors are all positive."""
+    m2 = H[0, 0] * H[1, 1] - H[0, 1] * H[1, 0]
+    return H[0, 0] > wp.float64(0.0) and m2 > wp.float64(0.0) and wp.determinant(H) > wp.float64(0.0)
+
+
+@wp.func
 def tangent_at(F: wp.mat33d, mu: wp.float64, lam: wp.float64) -> Tangent:
     """The projected tangent of ``Psi`` at ``F`` (module doc)."""
     U = wp.mat33d()
@@ -100,15 +109,16 @@ def tangent_at(F: wp.mat33d, mu: wp.float64, lam: wp.float64) -> Tangent:
     g = wp.vec3d(s[1] * s[2], s[0] * s[2], s[0] * s[1])
     A = wp.mat33d(wp.float64(0.0), s[2], s[1], s[2], wp.float64(0.0), s[0], s[1], s[0], wp.float64(0.0))
     H = mu * wp.identity(n=3, dtype=wp.float64) + (lam + mu) * wp.outer(g, g) + c * A
-    Q = wp.mat33d()
-    d = wp.vec3d()
-    wp.eig3(H, Q, d)
     zero = wp.float64(0.0)
-    d = wp.vec3d(wp.max(d[0], zero), wp.max(d[1], zero), wp.max(d[2], zero))
     T = Tangent()
     T.U = U
     T.V = V
-    T.scaling = Q * wp.diag(d) * wp.transpose(Q)
+    T.scaling = H
+    if not positive_definite(H):
+        Q = wp.mat33d()
+        d = wp.vec3d()
+        wp.eig3(H, Q, d)
+        T.scaling = Q * wp.diag(wp.vec3d(wp.max(d[0], zero), wp.max(d[1], zero), wp.max(d[2], zero))) * wp.transpose(Q)
     T.twist = wp.vec3d(wp.max(mu + c * s[0], zero), wp.max(mu + c * s[1], zero), wp.max(mu + c * s[2], zero))
     T.flip = wp.vec3d(wp.max(mu - c * s[0], zero), wp.max(mu - c * s[1], zero), wp.max(mu - c * s[2], zero))
     return T
@@ -221,13 +231,21 @@ def stiffness_product_columns(
 
 
 @wp.func
-def stiffness_block(T: Tangent, ga: wp.vec3d, gb: wp.vec3d) -> wp.mat33d:
-    """The 3x3 block ``K_ab / V`` (Pa m^-2) coupling nodes ``a`` and ``b``: its column ``d`` is
-    the force on ``a`` of a unit motion of ``b`` along axis ``d``."""
-    k0 = tangent_product(T, wp.outer(wp.vec3d(1.0, 0.0, 0.0), gb)) * ga
-    k1 = tangent_product(T, wp.outer(wp.vec3d(0.0, 1.0, 0.0), gb)) * ga
-    k2 = tangent_product(T, wp.outer(wp.vec3d(0.0, 0.0, 1.0), gb)) * ga
+def node_block(P0: wp.mat33d, P1: wp.mat33d, P2: wp.mat33d, ga: wp.vec3d) -> wp.mat33d:
+    """The 3x3 block ``K_ab / V`` (Pa m^-2): column ``d`` is the force on node ``a`` (gradient
+    ``ga``) of a unit motion of node ``b`` along axis ``d``, whose stress change is ``P_d``."""
+    k0 = P0 * ga
+    k1 = P1 * ga
+    k2 = P2 * ga
     return wp.mat33d(k0[0], k1[0], k2[0], k0[1], k1[1], k2[1], k0[2], k1[2], k2[2])
+
+
+@wp.func
+def unit_motion_stress(T: Tangent, gb: wp.vec3d, d: int) -> wp.mat33d:
+    """``dP`` (Pa per m) of a unit motion along axis ``d`` of a node with shape gradient ``gb``."""
+    e = wp.vec3d()
+    e[d] = wp.float64(1.0)
+    return tangent_product(T, wp.outer(e, gb))
 
 
 @wp.kernel
@@ -245,7 +263,8 @@ def stiffness_diagonal(
     T = tangent[e]
     for a in range(4):
         g = shape_gradient(Di, a)
-        wp.atomic_add(diag, t[a], volume[e] * stiffness_block(T, g, g))
+        Kaa = node_block(unit_motion_stress(T, g, 0), unit_motion_stress(T, g, 1), unit_motion_stress(T, g, 2), g)
+        wp.atomic_add(diag, t[a], volume[e] * Kaa)
 
 
 @wp.kernel
@@ -256,18 +275,19 @@ def stiffness_blocks(
     blocks: wp.array(dtype=wp.mat33d),
 ):
     """All sixteen 3x3 blocks of each element's tangent stiffness, for sparse assembly:
-    ``blocks[16 e + 4 a + b] = K_ab`` (N/m); the tangent is symmetric, ``K_ba = K_ab^T``."""
+    ``blocks[16 e + 4 a + b] = K_ab`` (N/m). Each node's three unit motions give the stress
+    changes that make the blocks of its column (12 tangent products an element)."""
     e = wp.tid()
     Di = dm_inv[e]
     T = tangent[e]
     V = volume[e]
-    for a in range(4):
-        ga = shape_gradient(Di, a)
-        for b in range(a, 4):
-            Kab = V * stiffness_block(T, ga, shape_gradient(Di, b))
-            blocks[16 * e + 4 * a + b] = Kab
-            if b != a:
-                blocks[16 * e + 4 * b + a] = wp.transpose(Kab)
+    for b in range(4):
+        gb = shape_gradient(Di, b)
+        P0 = V * unit_motion_stress(T, gb, 0)
+        P1 = V * unit_motion_stress(T, gb, 1)
+        P2 = V * unit_motion_stress(T, gb, 2)
+        for a in range(4):
+            blocks[16 * e + 4 * a + b] = node_block(P0, P1, P2, shape_gradient(Di, a))
 
 
 @wp.kernel

@@ -42,18 +42,26 @@ class Corotational:
         g = self.group
         return [g.dm_inv, g.volume, g.mu, g.lam]
 
+    def _linearization(self, rot: wp.array) -> list:
+        """What :meth:`linearize` writes besides the forces: here the rotations."""
+        return [rot]
+
+    def _tangent(self, rot: wp.array) -> list:
+        """The kernels' inputs that define the tangent stiffness of the last linearization."""
+        return [*self._material(), rot]
+
     def linearize(self, q: wp.array, rot: wp.array, force: wp.array) -> None:
         """Rotations ``rot`` at positions ``q`` (m) and the internal forces (N) accumulated into
         ``force`` (``(n,)`` vec3d, zeroed by the caller)."""
         m, g = self.model, self.group
-        launch(self.kernels.element_forces, g.count, inputs=[q, g.elems, *self._material()], outputs=[rot, force],
-               device=m.device)
+        launch(self.kernels.element_forces, g.count, inputs=[q, g.elems, *self._material()],
+               outputs=self._linearization(rot) + [force], device=m.device)
 
     def apply(self, x: wp.array, y: wp.array, rot: wp.array, scale: float, done: wp.array | None = None) -> None:
         """``y[c] += scale K x[c]`` for ``(k, n)`` vec3d ``x`` and ``y`` (N per m of ``x``). ``done``:
         CG scalars ``(k, worlds, slots)``; a column of a world they mark converged is skipped."""
         m, g = self.model, self.group
-        inputs = [x, g.elems, *self._material(), rot, scale, g.world, done]
+        inputs = [x, g.elems, *self._tangent(rot), scale, g.world, done]
         if x.shape[0] > 1 and (m.device.is_cpu or g.count >= ELEMENT_MAJOR_FROM):
             launch(self.kernels.stiffness_product_columns, g.count, inputs=inputs, outputs=[y], device=m.device)
             return
@@ -62,14 +70,14 @@ class Corotational:
     def diagonal(self, rot: wp.array, diag: wp.array) -> None:
         """Accumulate the 3x3 diagonal blocks of ``K`` (N/m) per node into ``diag`` ``(n,)`` mat33d."""
         m, g = self.model, self.group
-        launch(self.kernels.stiffness_diagonal, g.count, inputs=[g.elems, *self._material(), rot], outputs=[diag],
+        launch(self.kernels.stiffness_diagonal, g.count, inputs=[g.elems, *self._tangent(rot)], outputs=[diag],
                device=m.device)
 
     def blocks(self, rot: wp.array, blocks: wp.array) -> None:
         """The ``k^2`` 3x3 blocks (N/m) of each element's ``K`` (``k`` nodes an element),
         ``(k^2 count,)`` mat33d, block ``k a + b`` of element ``e`` at ``k^2 e + k a + b``."""
         m = self.model
-        launch(self.kernels.stiffness_blocks, self.group.count, inputs=[*self._material(), rot], outputs=[blocks],
+        launch(self.kernels.stiffness_blocks, self.group.count, inputs=self._tangent(rot), outputs=[blocks],
                device=m.device)
 
     def node_rotations(self, rot: wp.array, node_sum: wp.array) -> None:
