@@ -232,8 +232,9 @@ def stiffness_product_columns(
 
 @wp.func
 def node_block(P0: wp.mat33d, P1: wp.mat33d, P2: wp.mat33d, ga: wp.vec3d) -> wp.mat33d:
-    """The 3x3 block ``K_ab / V`` (Pa m^-2): column ``d`` is the force on node ``a`` (gradient
-    ``ga``) of a unit motion of node ``b`` along axis ``d``, whose stress change is ``P_d``."""
+    """The 3x3 block coupling nodes ``a`` and ``b``: column ``d`` is ``P_d ga``, the force on node
+    ``a`` (gradient ``ga``) of a unit motion of node ``b`` along axis ``d`` whose stress change
+    is ``P_d`` (``K_ab / V`` in Pa m^-2; ``K_ab`` in N/m with ``P_d`` times the volume)."""
     k0 = P0 * ga
     k1 = P1 * ga
     k2 = P2 * ga
