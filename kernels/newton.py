@@ -3,10 +3,12 @@
 Iteration ``k`` linearizes at ``q_k = q0 + dx_k`` and solves ``A_k e = r_k`` for the correction,
 where ``r_k`` is the step's out-of-balance at ``dx_k`` without the rows' forces:
 
-    r(dx) = P( c_v M v0 + c_f (f_int(q0 + dx) + f_ext) - mass_scale M dx - c_d K dx )
+    r(dx) = P( c_v M v0 + c_f (f_int(q0 + dx) + f_ext) + c_0 (f_int(q0) + f_ext) - mass_scale M dx - c_d K dx )
 
-with ``(c_v, c_f) = (h, h^2)`` in a dynamic step (kg m), ``(0, 1)`` quasi-static (N), and
-``c_d = h b`` the Rayleigh stiffness damping (0 quasi-static). At ``dx = 0`` it is the step's
+with ``(c_v, c_f, c_0) = (h, k^2 h^2, (k - k^2) h^2)`` in a dynamic step (kg m), ``(0, 1, 0)``
+quasi-static (N), and ``c_d = k h b`` the Rayleigh stiffness damping (0 quasi-static); ``k`` is
+the share of the step's end in its forces: 1 for implicit Euler, 1/2 for the trapezoid (whose
+``dx = h (v0 + v1) / 2`` and ``M (v1 - v0) = h (f0 + f1) / 2`` give the line above). At ``dx = 0`` it is the step's
 usual right-hand side. The nonlinear residual adds the rows' forces, ``R = r + s H^T lambda``
 (``H^T lambda`` formed from the rows' entries, ``Rows.force_rows_forces``).
 """
@@ -25,6 +27,7 @@ def residual(
     mass: wp.array(dtype=wp.float64),
     f_int: wp.array(dtype=wp.vec3d),
     f_ext: wp.array(dtype=wp.vec3d),
+    f_start: wp.array(dtype=wp.vec3d),
     kdx: wp.array(dtype=wp.vec3d),
     dx: wp.array(dtype=wp.vec3d),
     mask: wp.array(dtype=wp.vec3d),
@@ -41,7 +44,7 @@ def residual(
     """``rhs[0] = r(dx)`` (the next solve's right-hand side) and, per world, ``R . e`` where
     ``row_forces = H_f^T lambda`` (N) are the rows' forces at the same positions (``sums`` zeroed
     before). ``kdx`` is ``c_d K dx`` (zero without stiffness damping); ``mass`` is zero in a
-    quasi-static model."""
+    quasi-static model; ``f_start`` is ``c_0 (f_int(q0) + f_ext)`` (kg m; empty when ``c_0 = 0``)."""
     c, blk, lane = wp.tid()
     i0, i1, w, uniform = block_world(blk, rhs.shape[1], world)
     re = wp.float64(0.0)
@@ -51,6 +54,8 @@ def residual(
         wi = world[i]
         b = wp.cw_mul(p, (c_v * mass[i]) * v0[i] - (mass_scale * mass[i]) * dx[i] + c_f * (f_int[i] + f_ext[i])
                       - kdx[i])
+        if f_start.shape[0] > 0:
+            b += wp.cw_mul(p, f_start[i])
         rhs[0, i] = b
         r = b + s * wp.cw_mul(p, row_forces[i])
         re = node_add(uniform, re, wp.dot(r, e[i]), sums, c, wi, SLOPE)
@@ -61,10 +66,14 @@ def residual(
 @wp.kernel
 def start(v0: wp.array(dtype=wp.vec3d), mass: wp.array(dtype=wp.float64), f_int: wp.array(dtype=wp.vec3d),
           f_ext: wp.array(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d), c_v: wp.float64, c_f: wp.float64,
-          rhs: wp.array2d(dtype=wp.vec3d)):
-    """``rhs[0] = r(0) = P(c_v M v0 + c_f (f_int + f_ext))``: the step's first right-hand side."""
+          c_0: wp.float64, rhs: wp.array2d(dtype=wp.vec3d), f_start: wp.array(dtype=wp.vec3d)):
+    """``rhs[0] = r(0) = P(c_v M v0 + (c_f + c_0) (f_int + f_ext))``: the step's first right-hand
+    side, the forces at the step's start; ``f_start = c_0 (f_int + f_ext)`` when ``c_0 != 0``."""
     i = wp.tid()
-    rhs[0, i] = wp.cw_mul(mask[i], (c_v * mass[i]) * v0[i] + c_f * (f_int[i] + f_ext[i]))
+    f = f_int[i] + f_ext[i]
+    if f_start.shape[0] > 0:
+        f_start[i] = c_0 * f
+    rhs[0, i] = wp.cw_mul(mask[i], (c_v * mass[i]) * v0[i] + (c_f + c_0) * f)
 
 
 @wp.kernel
@@ -93,15 +102,20 @@ def slope(
 
 
 @wp.kernel
-def update(q0: wp.array(dtype=wp.vec3d), dx_base: wp.array(dtype=wp.vec3d), e: wp.array(dtype=wp.vec3d),
-           alpha: wp.array(dtype=wp.float64), world: wp.array(dtype=wp.int32), inv_h: wp.float64,
-           dx: wp.array(dtype=wp.vec3d), q: wp.array(dtype=wp.vec3d), v: wp.array(dtype=wp.vec3d)):
-    """``dx = dx_base + alpha_w e``, ``q = q0 + dx``, ``v = dx / h`` (``inv_h = 0`` quasi-static)."""
+def update(q0: wp.array(dtype=wp.vec3d), v0: wp.array(dtype=wp.vec3d), dx_base: wp.array(dtype=wp.vec3d),
+           e: wp.array(dtype=wp.vec3d), alpha: wp.array(dtype=wp.float64), world: wp.array(dtype=wp.int32),
+           inv_kh: wp.float64, keep_v: wp.float64, dx: wp.array(dtype=wp.vec3d), q: wp.array(dtype=wp.vec3d),
+           v: wp.array(dtype=wp.vec3d)):
+    """``dx = dx_base + alpha_w e``, ``q = q0 + dx``, ``v = dx / (k h) - keep_v v0`` (implicit
+    Euler ``dx / h``, the trapezoid ``2 dx / h - v0``; ``inv_kh = 0`` quasi-static)."""
     i = wp.tid()
     d = dx_base[i] + alpha[world[i]] * e[i]
     dx[i] = d
     q[i] = q0[i] + d
-    v[i] = inv_h * d
+    vel = inv_kh * d
+    if keep_v != wp.float64(0.0):
+        vel -= keep_v * v0[i]
+    v[i] = vel
 
 
 @wp.kernel

@@ -92,14 +92,14 @@ class Model:
             s.validate()
         first = self.scenes[0]
         for w, s in enumerate(self.scenes[1:], 1):
-            for attr in ("dt", "static", "rayleigh_mass", "rayleigh_stiffness"):
+            for attr in ("dt", "static", "integrator", "rayleigh_mass", "rayleigh_stiffness"):
                 if getattr(s, attr) != getattr(first, attr):
                     raise SceneError(f"finalize: world {w} (scene '{s.name}') has {attr} = {getattr(s, attr)!r}, "
                                      f"world 0 (scene '{first.name}') {getattr(first, attr)!r}: worlds step "
                                      "together and must share it")
         self.num_worlds = len(self.scenes)
         self.device = wp.get_device(device)
-        self.static, self.dt = first.static, first.dt
+        self.static, self.dt, self.integrator = first.static, first.dt, first.integrator
         self.rayleigh_mass, self.rayleigh_stiffness = first.rayleigh_mass, first.rayleigh_stiffness
 
         nodes, tets, mu, lam, rho, self.bodies = [], [], [], [], [], []

@@ -75,9 +75,16 @@ class Newton:
         self.tolerance = float(tolerance)
         self.backtracks = int(backtracks) if self.max_iterations > 1 else 0  # one linearization: its full step
         n, worlds = m.num_nodes, m.num_worlds
-        h = m.dt
-        self.c_v, self.c_f = (0.0, 1.0) if m.static else (h, h * h)
-        self.c_d = sim.stiffness_scale - self.c_f  # Rayleigh stiffness damping h b (0 quasi-static)
+        h, k = m.dt, sim.end_share
+        # r(dx) = c_v M v0 + c_f f(q0 + dx) + c_0 f(q0) - ...: implicit Euler (k = 1) takes the
+        # forces at the step's end, the trapezoid (k = 1/2) the mean of both ends
+        self.c_v, self.c_f = (0.0, 1.0) if m.static else (h, (k * h) ** 2)
+        self.c_0 = 0.0 if m.static else (k - k * k) * h * h  # (s^2) before the step start's forces
+        self.c_d = sim.stiffness_scale - self.c_f  # Rayleigh stiffness damping k h b (0 quasi-static)
+        # v = dx / (k h) - (1/k - 1) v0: implicit Euler dx / h, the trapezoid 2 dx / h - v0
+        self.inv_kh, self.keep_v = (0.0, 0.0) if m.static else (1.0 / (k * h), 1.0 / k - 1.0)
+        # c_0 (f_int + f_ext) at the step's start (kg m): the trapezoid's only
+        self.f_start = wp.zeros(n if self.c_0 else 0, dtype=wp.vec3d, device=d)
         self.dx_base = wp.zeros(n, dtype=wp.vec3d, device=d)  # dx_k (m)
         self.dx = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # dx_k + alpha e: the step so far (m)
         self.kdx = wp.zeros((1, n), dtype=wp.vec3d, device=d)  # c_d K dx
@@ -125,7 +132,8 @@ class Newton:
         sim, m = self.sim, self.sim.model
         self.dx.zero_()
         launch(kernels.start, m.num_nodes, inputs=[sim.state.v, self.mass, sim.f_int, sim.f_ext, m.mask, self.c_v,
-                                                    self.c_f], outputs=[sim.rhs], device=m.device)
+                                                    self.c_f, self.c_0], outputs=[sim.rhs, self.f_start],
+               device=m.device)
         if sim.driven is not None:  # the kinematic frames' nodes: their move is known
             sim.driven.prescribe(sim.state.q, self.dx, sim.rhs, sim.operator, m.mask)
 
@@ -166,7 +174,7 @@ class Newton:
                    inputs=[self.lam_base, self.lam_full, self.alpha, self.row_world],
                    outputs=[sim.gauss_seidel.lam], device=m.device)
         launch(kernels.update, m.num_nodes,
-               inputs=[sim.state.q, self.dx_base, e, self.alpha, m.node_world, 0.0 if m.static else 1.0 / m.dt],
+               inputs=[sim.state.q, sim.state.v, self.dx_base, e, self.alpha, m.node_world, self.inv_kh, self.keep_v],
                outputs=[self.dx[0], sim.next.q, sim.next.v], device=m.device)
         if sim.rigid is not None:  # the rigid bodies along the same fraction
             sim.rigid.advance(sim.state, sim.next, self.alpha)
@@ -182,9 +190,9 @@ class Newton:
         if self.actuated:
             sim.rows.force_rows_forces(sim.gauss_seidel.lam, 1.0, self.row_forces)
         launch_nodes(kernels.residual, 1, m.num_nodes,
-                     [sim.state.v, self.mass, sim.f_int, sim.f_ext, self.kdx[0], self.dx[0], m.mask, self.c_v,
-                      self.c_f, sim.mass_scale, self.row_forces, sim.constraint_scale, e, m.node_world, sim.rhs,
-                      self.sums], m.device)
+                     [sim.state.v, self.mass, sim.f_int, sim.f_ext, self.f_start, self.kdx[0], self.dx[0], m.mask,
+                      self.c_v, self.c_f, sim.mass_scale, self.row_forces, sim.constraint_scale, e, m.node_world,
+                      sim.rhs, self.sums], m.device)
 
     # ---- host judgement -------------------------------------------------------------------
     def _reset_host(self) -> None:

@@ -8,15 +8,19 @@ import warpsoft as ws
 
 
 def build(length=0.1, width=0.01, height=0.01, young_modulus=1e6, poisson_ratio=0.3, density=1000.0,
-          gravity=0.0, tip_force=0.0, mesh_size=None, static=True, dt=0.01, element="corotational"):
+          gravity=0.0, tip_force=0.0, mesh_size=None, static=True, dt=0.01, element="corotational",
+          integrator="implicit_euler", refine=0):
     """Beam along +x from 0 to ``length`` (m), section ``width`` (y) x ``height`` (z) centred on
     the axis; ``tip_force`` (N) along -z over the end face; probe ``tip`` at (length, 0, 0).
     ``element``: "corotational" (linear tetrahedra), "quadratic" (10-node ones on the same mesh) or
-    "neohookean" (linear tetrahedra of stable Neo-Hookean material)."""
+    "neohookean" (linear tetrahedra of stable Neo-Hookean material). ``integrator``: the dynamic
+    step's, "implicit_euler" or "trapezoidal". ``refine``: the mesh split that many times, each
+    element into eight (nested refinement, for convergence studies)."""
     h = mesh_size if mesh_size is not None else min(width, height) / 6  # within 10% of beam theory
     shape = ws.shapes.Box((0.0, -width / 2, -height / 2), (length, width, height))
-    scene = ws.Scene("cantilever", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=1 if static else 100)
-    beam = scene.add_body("beam", ws.mesh_shape(shape, h, name="beam"),
+    scene = ws.Scene("cantilever", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=1 if static else 100,
+                     integrator=integrator)
+    beam = scene.add_body("beam", ws.mesh_shape(shape, h, name="beam").refined(refine),
                           ws.Material(young_modulus, poisson_ratio, density), element=element)
     scene.fix(beam, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9))
     if tip_force:

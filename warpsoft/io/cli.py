@@ -41,9 +41,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--newton-iterations", type=int, default=10, metavar="N",
                    help="most linearizations per step; 1: one, as SOFA's implicit Euler (default: 10, used only "
                         "when the residual says so)")
-    r.add_argument("--newton-tolerance", type=float, default=0.1,
+    r.add_argument("--newton-tolerance", type=float, default=None,
                    help="nonlinear residual left along a step's correction, relative to it, at which the step is "
-                        "done (default: 0.1; 1e-3 resolves each step fully)")
+                        "done (default: 0.1 with implicit Euler, 1e-4 with the trapezoid; 1e-3 resolves an "
+                        "implicit Euler step fully)")
     r.add_argument("--flush-every", type=int, default=50, metavar="N",
                    help="write the report and the USD every N steps as the run goes (default: 50)")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")

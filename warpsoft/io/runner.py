@@ -152,7 +152,7 @@ def stop_on_signals():
 def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: str | Path | None = None,
         report: str | Path | None = None, solver: str = "auto", tolerance: float = 1e-6, progress: bool = False,
         scene_file: str | None = None, flush_every: int = 50, newton_iterations: int = 10,
-        newton_tolerance: float = 0.1, usd_contacts: bool = False) -> RunReport:
+        newton_tolerance: float | None = None, usd_contacts: bool = False) -> RunReport:
     """Simulate ``steps`` steps (the scene's default if None), optionally writing USD and a JSON report.
     ``newton_iterations`` and ``newton_tolerance`` are the :class:`Simulator`'s; ``usd_contacts``
     adds each frame's contact points and forces to the USD.
@@ -175,7 +175,8 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
                     newton_tolerance=newton_tolerance)
     rep = RunReport(sim, scene_file=scene_file, params=scene.params, params_used=getattr(scene, "params_used", None),
                     options={"solver": solver, "tolerance": tolerance, "steps": steps,
-                             "newton_iterations": newton_iterations, "newton_tolerance": newton_tolerance})
+                             "newton_iterations": newton_iterations,
+                             "newton_tolerance": sim.newton.tolerance})
     writer = None
     if usd is not None:
         from .usd import UsdWriter

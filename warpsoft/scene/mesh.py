@@ -102,6 +102,20 @@ class TetMesh:
         sub[neg] = sub[neg][:, [0, 2, 1, 3]]
         return TetMesh(nodes, sub, name=self.name, quadratic=elems)
 
+    def refined(self, times: int = 1) -> TetMesh:
+        """The mesh split ``times`` times, each element into eight at its edges' midpoints: a
+        nested refinement halving the element size each time (for convergence studies of a mesh
+        given as a file). Linear meshes only."""
+        if self.quadratic is not None:
+            raise MeshError(f"mesh '{self.name}': refined() splits linear meshes; this one is quadratic")
+        if int(times) < 0:
+            raise MeshError(f"mesh '{self.name}': refined() takes times >= 0, got {times!r}")
+        mesh = self
+        for _ in range(int(times)):
+            split = mesh.quadratic_refined()
+            mesh = TetMesh(split.nodes, split.tets, name=self.name)
+        return mesh
+
     @classmethod
     def oriented(cls, nodes, tets, name: str = "mesh", drop_unused: bool = True) -> TetMesh:
         """Build a mesh after making every element positively oriented (swapping two nodes of

@@ -120,6 +120,9 @@ class Probe:
     point: np.ndarray
 
 
+INTEGRATORS = ("implicit_euler", "trapezoidal")
+
+
 class Scene:
     """A soft-robot scene.
 
@@ -130,10 +133,16 @@ class Scene:
             depend on time.
         static: quasi-static (no mass, no damping) instead of implicit dynamics.
         steps: default number of steps for ``warpsoft run``.
+        integrator: how a dynamic step integrates, one of :data:`INTEGRATORS`:
+            ``"implicit_euler"`` (forces and velocities at the step's end: unconditionally
+            stable, and it dissipates the energy of motions the step does not resolve) or
+            ``"trapezoidal"`` (Newmark's average acceleration: the mean of the forces and of the
+            velocities at both ends; second order, it keeps the energy of an undamped body, and
+            it keeps unresolved high frequencies ringing too). Ignored by quasi-static scenes.
     """
 
     def __init__(self, name: str = "scene", gravity: Vec3 = (0.0, 0.0, 0.0), dt: float = 0.01,
-                 static: bool = False, steps: int = 100):
+                 static: bool = False, steps: int = 100, integrator: str = "implicit_euler"):
         self.name = str(name)
         self.gravity = _vec3(gravity, f"scene '{name}': gravity")
         self.dt = _finite(dt, f"scene '{name}': dt")
@@ -143,6 +152,9 @@ class Scene:
         if int(steps) < 1:
             raise SceneError(f"scene '{name}': steps must be >= 1, got {steps!r}")
         self.steps = int(steps)
+        if integrator not in INTEGRATORS:
+            raise SceneError(f"scene '{name}': integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+        self.integrator = integrator
         self.bodies: list[Body] = []
         self.fixtures: list[Fixture] = []
         self.loads: list[Load] = []
@@ -454,6 +466,9 @@ class Scene:
         if self.static and self.rigid_bodies:
             raise SceneError(f"scene '{self.name}': rigid body '{self.rigid_bodies[0].name}' needs a dynamic scene "
                              "(a quasi-static step has no inertia to hold a free solid): set static=False")
+        if self.rigid_bodies and not self.static and self.integrator != "implicit_euler":
+            raise SceneError(f"scene '{self.name}': rigid body '{self.rigid_bodies[0].name}' is integrated by "
+                             f"implicit Euler only; integrator {self.integrator!r} takes soft bodies alone")
         for a in self.attachments:
             held = [f for f in self.fixtures if f.body is a.body and np.any(f.region(a.body.mesh.nodes[a.nodes]))]
             if held:
