@@ -18,7 +18,8 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
           poisson_ratio=0.45, total_mass=0.5, gravity=9.81, dt=0.02, rayleigh_mass=0.1, rayleigh_stiffness=0.1,
           mesh_size=0.01, mode="direct", cable_displacements=(0.0, 0.0, 0.0, 0.0), ramp_time=1.0,
           max_cable_displacement=0.02, max_cable_step=0.001, target=None, circle_radius=0.015, circle_depth=0.003,
-          circle_period=4.0, static=False, mesh=None, cable_schedule=None):
+          circle_period=4.0, static=False, mesh=None, cable_schedule=None, cable_forces=None, refine=0,
+          element="corotational"):
     """``mode="direct"``: each cable i shortens linearly to ``cable_displacements[i]`` (m) over
     ``ramp_time`` (s). ``mode="inverse"``: the cables follow the effector's ``target`` (x, y, z)
     (m), or by default a circle of ``circle_radius`` (m), ``circle_depth`` (m) below the rest top,
@@ -26,7 +27,12 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
     [0, ``max_cable_displacement``] (SoftRobots: 20 mm) with tension >= 0; in inverse mode they
     change by at most ``max_cable_step`` (m) per step. ``static=True``: quasi-static steps.
     ``cable_schedule``: in direct mode, a function of time (s) giving the four cable
-    displacements (m), instead of the ramp to ``cable_displacements``."""
+    displacements (m), instead of the ramp to ``cable_displacements``. ``cable_forces``: in
+    direct mode, four tensions (N) or None each: a cable given one is driven by force, ramped to
+    it over ``ramp_time`` (0: a free cable), the others by displacement. ``refine``: the mesh
+    (generated or ``mesh``) split that many times, each element into eight (nested refinement).
+    ``element``: the body's element model (``Scene.add_body``: "corotational", "quadratic",
+    "neohookean")."""
     if mode not in ("direct", "inverse"):
         raise ws.SceneError(f"diamond: mode must be 'direct' or 'inverse', got {mode!r}")
     if cable_schedule is not None and (mode != "direct" or not callable(cable_schedule)):
@@ -34,6 +40,10 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
                             f"{cable_schedule!r} in mode {mode!r}")
     if len(cable_displacements) != 4:
         raise ws.SceneError(f"diamond: cable_displacements must have 4 values, got {cable_displacements!r}")
+    forces = (None,) * 4 if cable_forces is None else tuple(cable_forces)
+    if len(forces) != 4 or (cable_forces is not None and (mode != "direct" or cable_schedule is not None)):
+        raise ws.SceneError(f"diamond: cable_forces must have 4 values (N or None), in direct mode without a "
+                            f"cable_schedule; got {cable_forces!r} in mode {mode!r}")
     base_top = 0.01
     hub = np.array([0.0, 0.0, 0.0])
     top = np.array([0.0, 0.0, top_height - leg_radius])
@@ -52,12 +62,18 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
                                                            translation=(0.0, 0.0, 0.035))
         pulls = [0.01 * c / np.linalg.norm(c[:2]) * np.array([1.0, 1.0, 0.0]) + np.array([0.0, 0.0, 0.03])
                  for c in corners]
+    tets = tets.refined(refine)
     scene = ws.Scene("diamond", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=100)
-    body = scene.add_body("diamond", tets, ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
+    body = scene.add_body("diamond", tets, ws.Material(young_modulus, poisson_ratio), total_mass=total_mass,
+                         element=element)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
     scene.fix(body, ws.InBox((-0.015, -0.015, -0.04), (0.015, 0.015, base_top)))  # SoftRobots' base box
     step = max_cable_step if mode == "inverse" else math.inf
     for i, (c, d, pull) in enumerate(zip(corners, cable_displacements, pulls, strict=True)):
+        if forces[i] is not None:  # driven by its tension
+            scene.add_cable(f"cable{i}", body, points=[tuple(c)], pull_point=tuple(pull), mode="force",
+                            value=lambda t, f=float(forces[i]): f * min(t / ramp_time, 1.0))
+            continue
         if cable_schedule is None:
             value = lambda t, d=d: d * min(t / ramp_time, 1.0)  # noqa: E731
         else:

@@ -16,11 +16,12 @@ def build(length=0.195, base_radius=0.013, tip_radius=0.005, young_modulus=450e3
           total_mass=0.042, gravity=9.81, dt=0.02, rayleigh_mass=0.1, rayleigh_stiffness=0.02, mesh_size=0.006,
           sweep=0.025, period=4.0, target=None, neck=0.85, max_long=0.07, max_short=0.04, max_step=0.001,
           static=False, obstacles=False, post_radius=0.008, post_x=0.13, post_gap=0.004, base_travel=0.0,
-          base_period=None):
+          base_period=None, element="corotational"):
     """Cables shorten by at most ``max_long`` / ``max_short`` (m) and ``max_step`` (m) per step
     (SoftRobots: 70 mm, 40 mm, 1 mm). ``target`` (x, y, z) (m) fixes the tip alone; by default
     the tip and the neck (at ``neck * length``) follow ``y = sweep sin(2 pi t / period)``,
     ``z = 0`` (their x is left free). ``static=True``: quasi-static steps (``dt`` is pseudo-time).
+    ``element``: the body's element model ("corotational", "quadratic", "neohookean").
 
     ``obstacles=True``: two upright rigid posts of ``post_radius`` (m) at ``x = post_x``, one on
     each side, ``post_gap`` (m) from the trunk's surface at rest; the sweep presses the trunk
@@ -32,7 +33,8 @@ def build(length=0.195, base_radius=0.013, tip_radius=0.005, young_modulus=450e3
     shape = ws.Cone((0.0, 0.0, 0.0), (length, 0.0, 0.0), base_radius, tip_radius)
     scene = ws.Scene("trunk", gravity=(0.0, 0.0, -gravity), dt=dt, static=static, steps=int(round(period / dt)))
     trunk = scene.add_body("trunk", ws.mesh_shape(shape, mesh_size, name="trunk"),
-                           ws.Material(young_modulus, poisson_ratio), total_mass=total_mass)
+                           ws.Material(young_modulus, poisson_ratio), total_mass=total_mass,
+                           element=element)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
     base = None
     if base_travel:

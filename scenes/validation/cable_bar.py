@@ -12,16 +12,17 @@ import warpsoft as ws
 
 
 def build(length=0.1, width=0.01, height=0.01, young_modulus=1e6, poisson_ratio=0.3, cable_force=None,
-          cable_displacement=None, mesh_size=None):
+          cable_displacement=None, mesh_size=None, element="corotational"):
     """``cable_force`` (N) or ``cable_displacement`` (m of shortening) drives the cable; with
     neither, a 0.2 N tension (below the buckling tension). Probe ``mid`` at (length/2, 0, 0),
-    probe ``end`` at (length, 0, 0)."""
+    probe ``end`` at (length, 0, 0). ``element``: the bar's element model (``Scene.add_body``)."""
     if cable_force is not None and cable_displacement is not None:
         raise ws.SceneError("cable_bar: give cable_force or cable_displacement, not both")
     h = mesh_size if mesh_size is not None else min(width, height) / 3
     scene = ws.Scene("cable_bar", static=True, steps=3)
     bar = scene.add_body("bar", ws.mesh_shape(ws.shapes.Box((0.0, -width / 2, -height / 2), (length, width, height)),
-                                              h, name="bar"), ws.Material(young_modulus, poisson_ratio, 1000.0))
+                                              h, name="bar"), ws.Material(young_modulus, poisson_ratio, 1000.0),
+                         element=element)
     scene.fix(bar, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9))
     if cable_displacement is not None:
         mode, value = "displacement", cable_displacement

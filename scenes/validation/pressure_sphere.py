@@ -11,13 +11,13 @@ import warpsoft as ws
 
 
 def build(inner_radius=0.01, outer_radius=0.02, young_modulus=1e5, poisson_ratio=0.3, pressure=100.0,
-          mesh_size=None):
+          mesh_size=None, element="corotational"):
     a, b = inner_radius, outer_radius
     h = mesh_size if mesh_size is not None else (b - a) / 6
     shape = (ws.Ball((0.0, 0.0, 0.0), b) & ws.shapes.Box((0.0, 0.0, 0.0), (b, b, b))) - ws.Ball((0.0, 0.0, 0.0), a)
     scene = ws.Scene("pressure_sphere", static=True, steps=3)
     shell = scene.add_body("shell", ws.mesh_shape(shape, h, name="shell"),
-                           ws.Material(young_modulus, poisson_ratio, 1000.0))
+                           ws.Material(young_modulus, poisson_ratio, 1000.0), element=element)
     planes = [ws.OnPlane((0.0, 0.0, 0.0), n, tol=1e-9) for n in ((1, 0, 0), (0, 1, 0), (0, 0, 1))]
     for plane, axis in zip(planes, "xyz", strict=True):
         scene.fix(shell, plane, axes=axis)  # symmetry: no motion across the plane
