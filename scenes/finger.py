@@ -8,13 +8,14 @@ import warpsoft as ws
 def build(length=0.085, height=0.02, width=0.015, notches=3, notch_depth=0.006, notch_width=0.004,
           young_modulus=600e3, poisson_ratio=0.45, total_mass=0.075, gravity=9.81, dt=0.01,
           rayleigh_mass=0.1, rayleigh_stiffness=0.1, mesh_size=0.004, cable_displacement=0.012, ramp_time=0.5,
-          max_cable_displacement=0.03, cable_height=None, static=False, element="corotational"):
+          max_cable_displacement=0.03, cable_height=None, static=False, element="corotational", refine=0):
     """Finger ``length`` (m) along -x, ``height`` (z) x ``width`` (y), ``notches`` cut into its
     top; silicone E 600 kPa, nu 0.45, 75 g (SoftRobots' values). The cable shortens linearly
     to ``cable_displacement`` (m) over ``ramp_time`` (s), within ``max_cable_displacement``; it
     runs at ``cable_height`` (m) above the bottom face, under the notches (by default at three
     quarters of their floor's height). ``static=True``: quasi-static steps. ``element``: the body's
-    element model ("corotational", "quadratic", "neohookean"; see docs/accuracy)."""
+    element model ("corotational", "quadratic", "neohookean"; see docs/accuracy). ``refine``: the
+    mesh split that many times, each element into eight (nested refinement)."""
     floor = height - notch_depth  # the notches' floor
     if cable_height is None:
         cable_height = floor - 0.25 * floor
@@ -28,7 +29,7 @@ def build(length=0.085, height=0.02, width=0.015, notches=3, notch_depth=0.006, 
         notch = ws.shapes.Box((x, -0.001, height - notch_depth), (notch_width, width + 0.002, notch_depth + 0.001))
         shape = shape - notch
     scene = ws.Scene("finger", gravity=(0.0, 0.0, -gravity), dt=dt, steps=100, static=static)
-    finger = scene.add_body("finger", ws.mesh_shape(shape, mesh_size, name="finger"),
+    finger = scene.add_body("finger", ws.mesh_shape(shape, mesh_size, name="finger").refined(refine),
                             ws.Material(young_modulus, poisson_ratio), total_mass=total_mass,
                             element=element)
     scene.set_damping(rayleigh_mass, rayleigh_stiffness)
