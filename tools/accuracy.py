@@ -52,7 +52,7 @@ from warpsoft import Simulator
 from warpsoft.io.runner import build_scene, load_scene_module
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from accuracy_report import plot_figure8, plot_pareto, summary  # noqa: E402
+from accuracy_report import BASE, plot_figure8, plot_pareto, summary  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SOFTROBOTS = ROOT.parent / "shared" / "reference" / "softrobots"  # SoftRobots' meshes (--softrobots)
@@ -248,11 +248,16 @@ def combinations(grid: dict) -> list[dict]:
     return combos
 
 
+def base_solver(device: str) -> str:
+    """The solver a study's references come from: the CPU's direct solve, CUDA's default."""
+    return "auto" if wp.get_device(device).is_cuda else "direct"
+
+
 def run_study(study: Study, device: str, precisions: tuple) -> list[dict]:
     """Every setting of ``study`` on every mesh, each row scored against the reference of its
     combination's direct solves (on CUDA: the default solver's), then ``study.others``'
     elements against that same reference."""
-    base = "auto" if wp.get_device(device).is_cuda else "direct"
+    base = base_solver(device)
     rows = []
     for combo in combinations(study.grid):
         settings = [(base if s == "direct" else s, t, p) for s, t in study.solvers
@@ -314,7 +319,7 @@ def score(rows: list[dict], ref: tuple, n: int | None) -> None:
 def by_force(study: Study, rows: list[dict]) -> Study:
     """Figure 8's second drive: the same motion driven by force, each mesh pulled by the
     tensions the finest displacement-driven mesh needed (the fourth cable free)."""
-    finest = max((r for r in rows if r["solver"] in ("direct", "auto") and r["element"] == "corotational"),
+    finest = max((r for r in rows if r["solver"] in BASE and r["element"] == "corotational"),
                  key=lambda r: r["dofs"])
     forces = (*(float(f) for f in finest["value"][3:6]), 0.0)
     return Study(study.name, study.scene, study.params | {"cable_forces": forces}, study.steps, study.quantity, None,
@@ -354,7 +359,7 @@ def swing(quick: bool, device: str) -> list[dict]:
             err = float(np.abs(traj - ref).max() / amplitude)
             rows.append({"study": "swing", "element": "corotational", "poisson_ratio": 0.3, "drive": "",
                          "mesh": 0.005 if quick else 0.0025, "dofs": dofs, "tolerance": "",
-                         "solver": "auto" if wp.get_device(device).is_cuda else "direct",
+                         "solver": base_solver(device),
                          "precision": "", "dt": dt, "integrator": integrator, "value": traj[-1], "step_ms": ms,
                          "cg_iterations": 0, "converged": True, "memory_mb": memory / 2 ** 20, "error": err,
                          "signed_error": "", "reference": "trapezoid 0.25 ms", "reference_error": "", "order": ""})
@@ -432,7 +437,7 @@ def load(path: Path, softrobots: Path) -> list[dict]:
             groups.setdefault((r["study"], r["drive"], r["poisson_ratio"]), []).append(r)
     for (name, _, _), sub in groups.items():
         study = by_name[name]
-        base = sorted((r for r in sub if r["element"] == "corotational" and r["solver"] in ("direct", "auto")),
+        base = sorted((r for r in sub if r["element"] == "corotational" and r["solver"] in BASE),
                       key=lambda r: r["dofs"])
         score(sub, reference(study, {}, base), study.compared)
     return rows
@@ -473,8 +478,9 @@ def args_list(args) -> list[str]:
 def key(r: dict) -> tuple:
     """A setting's identity across the CPU and GPU tables (the precision aside: the CPU has one;
     the GPU's default solver, "auto", stands where the CPU solves directly)."""
-    return tuple(str(r[k]).replace("auto", "direct") for k in ("study", "element", "poisson_ratio", "drive", "mesh",
-                                                               "solver", "tolerance", "dt", "integrator"))
+    solver = "direct" if r["solver"] in BASE else r["solver"]
+    return tuple(str(r[k]) for k in ("study", "element", "poisson_ratio", "drive", "mesh")) + (solver,) + tuple(
+        str(r[k]) for k in ("tolerance", "dt", "integrator"))
 
 
 if __name__ == "__main__":
