@@ -242,6 +242,14 @@ def test_an_unknown_element_is_refused_by_name():
         box_scene("mooney")
 
 
+def test_the_scene_offers_exactly_the_element_models_the_model_has():
+    """The scene package stays free of Warp, so it names the element models itself: the same ones."""
+    from warpsoft.elastic import ELEMENT_MODELS
+    from warpsoft.scene.scene import ELEMENTS
+
+    assert sorted(ELEMENTS) == sorted(ELEMENT_MODELS)
+
+
 def test_stifface_keeps_the_pressed_point_where_it_rests(scene_module):
     """The fingertip presses 1 N on the block's top: with its cables held at their rest length the
     top sinks by more than half a millimetre; the inverse model shortens them (within their

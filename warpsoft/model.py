@@ -236,16 +236,15 @@ class Model:
             return [ElementGroup("corotational", self.tets, self.tets_np, self.dm_inv, self.volume, self.mu, self.lam,
                                  self.elem_world, 0, self.num_elements)]
         groups, start = [], 0
-        mu_np, lam_np = self.mu.numpy(), self.lam.numpy()
+        mu_np, lam_np, volume_np, dm_inv_np = (a.numpy() for a in (self.mu, self.lam, self.volume, self.dm_inv))
         for kind in ("corotational", "neohookean"):  # linear tetrahedra: the model's, by index
             bodies = [b for b in self.bodies if b.element == kind]
             if not bodies:
                 continue
             idx = np.concatenate([np.arange(b.elem_start, b.elem_start + b.elem_count) for b in bodies])
-            volume, mu, lam = (wp.array(a[idx], dtype=wp.float64, device=d) for a in (self.volume.numpy(), mu_np,
-                                                                                     lam_np))
+            volume, mu, lam = (wp.array(a[idx], dtype=wp.float64, device=d) for a in (volume_np, mu_np, lam_np))
             groups.append(ElementGroup(kind, wp.array(self.tets_np[idx], dtype=wp.vec4i, device=d),
-                                       self.tets_np[idx], wp.array(self.dm_inv.numpy()[idx], dtype=wp.mat33d, device=d),
+                                       self.tets_np[idx], wp.array(dm_inv_np[idx], dtype=wp.mat33d, device=d),
                                        volume, mu, lam, wp.array(self.elem_world_np[idx], dtype=wp.int32, device=d),
                                        start, len(idx)))
             start += len(idx)
