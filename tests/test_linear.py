@@ -114,6 +114,22 @@ def test_a_factor_per_world_solves_and_gives_the_compliance_of_the_whole_factor(
     assert np.all(zz[np.ix_([0, 3], [1, 2, 4, 5])] == 0.0)  # worlds do not couple
 
 
+def test_a_wide_right_hand_side_is_solved_in_runs_of_columns(monkeypatch):
+    """CHOLMOD solves a dense right-hand side of more than SOLVE_ENTRIES numbers in runs of
+    columns (one whole solve crashed cvxopt on a 20916-DOF identity): the same numbers, and a
+    single vector stays a vector."""
+    import warpsoft.linear.assembly as assembly
+
+    sim = ws.Simulator(bent_beam(), solver="direct")
+    sim.step()
+    factor = sim.solver.factor
+    b = np.random.default_rng(5).standard_normal((factor.size, 50))
+    whole = factor.solve(b)
+    monkeypatch.setattr(assembly, "SOLVE_ENTRIES", 7 * factor.size)  # runs of 7 columns, the last of 1
+    assert np.array_equal(factor.solve(b), whole)
+    assert np.array_equal(factor.solve(b[:, 3]), whole[:, 3])
+
+
 def test_bad_factorization_name_is_named():
     with pytest.raises(ValueError, match="factorization must be one of .*got 'lu'"):
         ws.Simulator(bent_beam(), solver="direct", factorization="lu")

@@ -20,6 +20,10 @@ import warp as wp
 
 from .operator import SystemOperator
 
+# numbers of a dense right-hand side per CHOLMOD solve: cvxopt's cholmod.solve crashed (a segmentation
+# fault, on the H200's host) on the identity of the PneuNet's 20916 free DOFs (437M numbers, 3.5 GB)
+SOLVE_ENTRIES = 1 << 26
+
 
 class Assembly:
     """``A`` over the free DOFs, lower triangle, CSC, with its pattern analysed once.
@@ -109,10 +113,14 @@ class CholmodFactor:
         self._cholmod.numeric(self._matrix, self._symbolic)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """``A^-1 b`` for ``b`` of shape ``(f, k)``."""
-        y = self._cvxopt.matrix(np.asfortranarray(b))
-        self._cholmod.solve(self._symbolic, y)
-        return np.asarray(y).reshape(b.shape)
+        """``A^-1 b`` for ``b`` of shape ``(f, k)`` (or ``(f,)``), in runs of columns of at most
+        :data:`SOLVE_ENTRIES` numbers each."""
+        if b.ndim == 1 or b.size <= SOLVE_ENTRIES:
+            y = self._cvxopt.matrix(np.asfortranarray(b))
+            self._cholmod.solve(self._symbolic, y)
+            return np.asarray(y).reshape(b.shape)
+        run = max(1, SOLVE_ENTRIES // b.shape[0])
+        return np.concatenate([self.solve(b[:, j:j + run]) for j in range(0, b.shape[1], run)], axis=1)
 
     def forward(self, dof: np.ndarray, column: np.ndarray, value: np.ndarray, columns: int) -> sp.csc_matrix:
         """``Z = L^-1 P B`` for the sparse ``B`` ``(f, columns)`` given by its entries (free DOF,
