@@ -21,8 +21,10 @@ import warp as wp
 from .operator import SystemOperator
 
 # numbers of a dense right-hand side per CHOLMOD solve: cvxopt's cholmod.solve crashed (a segmentation
-# fault, on the H200's host) on the identity of the PneuNet's 20916 free DOFs (437M numbers, 3.5 GB)
-SOLVE_ENTRIES = 1 << 26
+# fault, on the H200's host) on the identity of the PneuNet's 20916 free DOFs (437M numbers, 3.5 GB); runs
+# of 2^24 numbers (134 MB) hold the dense preconditioner's refresh of the linear PneuNet (8565 DOFs) to a
+# 1.19 GB peak in 7.2 s on the CPU VM, where 2^26 took 2.16 GB and 8.5 s, and the whole identity 2.28 GB, 10.2 s
+SOLVE_ENTRIES = 1 << 24
 
 
 class Assembly:
