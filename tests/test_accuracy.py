@@ -112,3 +112,21 @@ def test_cuda_default_solver_rows_join_the_cpu_direct_ones():
            "solver": "direct", "tolerance": "", "dt": "", "integrator": ""}
     assert accuracy.key(cpu) == accuracy.key(cpu | {"solver": "auto"})
     assert accuracy.key(cpu) != accuracy.key(cpu | {"solver": "pcg", "tolerance": 1e-6})
+
+
+def test_two_meshes_extrapolate_at_the_assumed_order_of_the_sweeps_element():
+    """Where only two nested meshes fit (the PneuNet's 10-node sweep), the reference is their
+    Richardson extrapolation at the study's assumed order: exact for a quantity that converges at
+    that order, with the finest mesh's error stated, and the linear meshes scored against it."""
+    study = next(s for s in accuracy.studies(False) if s.name == "pneunet")
+    assert study.sweep == "quadratic" and study.order == 1.0 and study.meshes == [0, 1]
+    exact = np.array([0.001, -0.002, -0.0107])
+    rows = [{"dofs": 10 ** k, "element": e, "solver": "direct", "value": exact * (1 + c * 0.5 ** k)}
+            for e, c in (("quadratic", 0.1), ("corotational", 0.7)) for k in (0, 1)]
+    value, kind, estimate, order, element = accuracy.reference(study, {}, [r for r in rows if r["element"] ==
+                                                                             "quadratic"])
+    assert kind == "assumed order" and element == "quadratic" and order == 1.0
+    assert np.allclose(value, exact, rtol=1e-12)
+    assert estimate == pytest.approx(0.05)  # the finest quadratic mesh is 5 % off
+    accuracy.score(rows, (value, kind, estimate, order, element), 3)
+    assert [round(r["signed_error"], 6) for r in rows] == [0.1, 0.05, 0.7, 0.35]

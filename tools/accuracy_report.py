@@ -100,6 +100,11 @@ def _pct(x) -> str:
     return f"{100 * x:+.2f} %" if x != "" else ""
 
 
+def _mesh(mesh, unit: str = "") -> str:
+    """A mesh setting: a size (m), or for nested studies the number of splits (an int)."""
+    return f"split {mesh}" if isinstance(mesh, int) else f"{mesh}{unit}"
+
+
 def _ms(r: dict) -> str:
     gpu = f" / {r['step_ms_gpu']:.2f}" if r.get("step_ms_gpu") not in (None, "") else ""
     return f"{r['step_ms']:.1f}{gpu}"
@@ -113,10 +118,14 @@ def cheapest(rows: list[dict]) -> dict | None:
 def elastic_section(name: str, sub: list[dict]) -> list[str]:
     against = {"analytic": "the analytic solution", "extrapolated": "the Richardson extrapolation of the three "
                "finest meshes", "finest": "the finest mesh", "not monotone": "the extrapolation of three meshes "
-               "that do not converge monotonically (order 2 assumed: a trend, not a converged reference)"
-               }[sub[0]["reference"]]
+               "that do not converge monotonically (order 2 assumed: a trend, not a converged reference)",
+               "assumed order": f"the extrapolation of the two finest meshes at an assumed order "
+               f"{sub[0]['order']} (a third did not fit)"}[sub[0]["reference"]]
+    if sub[0].get("reference_element") not in (None, "", "corotational"):
+        against = against.replace("meshes", f"{sub[0]['reference_element']} meshes", 1)
     lines = [f"## {name}: error against {against} (direct solve)", "",
-             "| element | mesh (m) | DOFs | nu 0.3 | nu 0.45 | nu 0.49 | step ms (nu 0.45, CPU / GPU) | memory MB |",
+             "| element | mesh (m, or splits) | DOFs | nu 0.3 | nu 0.45 | nu 0.49 | step ms (nu 0.45, CPU / GPU) "
+             "| memory MB |",
              "|---|---|---|---|---|---|---|---|"]
     direct = [r for r in sub if r["solver"] in BASE]
     for element in dict.fromkeys(r["element"] for r in direct):
@@ -125,7 +134,7 @@ def elastic_section(name: str, sub: list[dict]) -> list[str]:
             if not at:
                 continue
             r45 = at.get(0.45, next(iter(at.values())))
-            lines.append(f"| {element} | {mesh} | {r45['dofs']} | " + " | ".join(
+            lines.append(f"| {element} | {_mesh(mesh)} | {r45['dofs']} | " + " | ".join(
                 _pct(at[nu]["signed_error"]) if nu in at else "" for nu in (0.3, 0.45, 0.49))
                 + f" | {_ms(r45)} | {r45['memory_mb']:.1f} |")
     lines.append("")
@@ -136,11 +145,13 @@ def elastic_section(name: str, sub: list[dict]) -> list[str]:
                          "their trend")
             continue
         if est:
+            observed = "assumed" if est[0]["reference"] == "assumed order" else "observed"
             lines.append(f"- nu {nu}: the finest mesh's own error, by the extrapolation: "
-                         f"{100 * est[0]['reference_error']:.2f} % (observed order {est[0]['order']:.2f})")
+                         f"{100 * est[0]['reference_error']:.2f} % ({observed} order {est[0]['order']:.2f})")
         best = cheapest([r for r in direct if r["poisson_ratio"] == nu])
         lines.append(f"- nu {nu}: " + (f"the cheapest setting within {100 * BUDGET:.0f} % is {best['element']} at "
-                                       f"{best['mesh']} m ({best['dofs']} DOFs): {_pct(best['signed_error'])}, "
+                                       f"{_mesh(best['mesh'], ' m')} ({best['dofs']} DOFs): "
+                                       f"{_pct(best['signed_error'])}, "
                                        f"{best['step_ms']:.1f} ms" if best else "no setting within the budget"))
     cg = [r for r in sub if r["solver"] == "pcg"]
     if cg:

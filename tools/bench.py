@@ -31,13 +31,16 @@ from warpsoft.io.runner import build_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
+PNEUNET_LINEAR = {"element": "corotational", "mesh_size": 0.0035}  # the PneuNet as measured before 2026-11-23
 SWINGING_BEAM = {"static": False, "gravity": 9.81, "poisson_ratio": 0.45}
 # name, scene file, parameters[, steps run before the warmup (to time a later phase)]
 SCENES = [
     ("finger", "scenes/finger.py", {}),
-    ("pneunet", "scenes/pneunet.py", {}),
+    ("pneunet", "scenes/pneunet.py", {}),  # 10-node elements at 7 mm (its default since 2026-11-23)
+    ("pneunet_linear", "scenes/pneunet.py", PNEUNET_LINEAR),  # the earlier default: linear at 3.5 mm
     # at 60 kPa its chambers meet across their gaps: self-contact, timed once they touch
-    ("pneunet_self_contact", "scenes/pneunet.py", {"pressure": 60e3, "ramp_time": 0.2, "self_contact": True}, 30),
+    ("pneunet_self_contact", "scenes/pneunet.py",
+     PNEUNET_LINEAR | {"pressure": 60e3, "ramp_time": 0.2, "self_contact": True}, 30),
     ("diamond", "scenes/diamond.py", {}),
     ("diamond_inverse", "scenes/diamond.py", {"mode": "inverse"}),
     ("diamond_inverse_softrobots_mesh", "scenes/diamond.py",  # SoftRobots.Inverse's own mesh: 4884 DOFs
@@ -266,6 +269,8 @@ def main(argv=None) -> int:
                     help="CUDA: time each kernel and copy of the uncaptured step (kernels.md)")
     ap.add_argument("--precision", choices=["float32", "float64"], default="float32",
                     help="pcg's dense warped inverse")
+    ap.add_argument("--preconditioner", choices=["auto", "host", "dense", "blocks"], default="auto",
+                    help="pcg's warped preconditioner (auto: dense on CUDA up to 12k free DOFs, host above)")
     ap.add_argument("--factor-reuse", type=float, default=0.0,
                     help="direct: the Simulator's factor_reuse (0: a factorization at every linearization)")
     args = ap.parse_args(argv)
@@ -273,8 +278,8 @@ def main(argv=None) -> int:
     if args.compare:
         runs = [("v1", *CONFIGS["v1"][kind]), ("v2", CONFIGS["v2"][kind][0], {"qp": args.qp})]
     else:
-        runs = [("v2", args.solver, {"qp": args.qp} | ({"precision": args.precision} if args.solver in ("pcg", "auto")
-                                                         else {}))]
+        pcg = {"precision": args.precision, "preconditioner": args.preconditioner}
+        runs = [("v2", args.solver, {"qp": args.qp} | (pcg if args.solver in ("pcg", "auto") else {}))]
     if args.factor_reuse:
         runs = [(config, solver, options | {"factor_reuse": args.factor_reuse}) for config, solver, options in runs
                 if config == "v2"]
