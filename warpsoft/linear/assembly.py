@@ -117,7 +117,7 @@ class CholmodFactor:
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^-1 b`` for ``b`` of shape ``(f, k)`` (or ``(f,)``), in runs of columns of at most
         :data:`SOLVE_ENTRIES` numbers each."""
-        if b.ndim == 1 or b.size <= SOLVE_ENTRIES:
+        if b.ndim == 1 or b.size <= SOLVE_ENTRIES or b.shape[1] == 1:
             y = self._cvxopt.matrix(np.asfortranarray(b))
             self._cholmod.solve(self._symbolic, y)
             return np.asarray(y).reshape(b.shape)
