@@ -26,6 +26,7 @@ import warpsoft as ws
 from warpsoft.io.runner import build_scene
 
 ROOT = Path(__file__).resolve().parents[1]
+GRAPHS = ("device_step", "newton_step", "line_search", "device_before_qp", "newton_before_qp", "device_after_qp")
 LEG_RADII = (0.009, 0.010, 0.011, 0.012, 0.013, 0.014, 0.015, 0.016)  # m: one mesh each
 
 
@@ -45,11 +46,12 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -
     for _ in range(warmup):
         sim.step()
     setup = time.perf_counter() - t0
-    times, its, world_its = [], [], []
+    times, its, world_its, graphs = [], [], [], []
     for _ in range(steps):
         t0 = time.perf_counter()
         stats = sim.step()
         times.append(time.perf_counter() - t0)
+        graphs.append(sum(t for name, t in stats.stages.items() if name in GRAPHS))
         its.append(stats.cg_iterations)
         world_its.append(np.mean([w.cg_iterations for w in stats.worlds]))
     pre = getattr(sim.solver, "precond", None)
@@ -59,6 +61,8 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -
         solver.scal.zero_()  # no world done: the product runs for all of them
         parts = {"precond_ms": 1e3 * _median_call(lambda: pre.apply(solver.r, solver.z), sim.model.device),
                  "operator_ms": 1e3 * _median_call(lambda: sim.operator.apply(solver.p, solver.ap), sim.model.device)}
+    if sim.timing and sim.model.device.is_cuda:  # the graphs' own time (synchronized), the rest is the host's
+        parts["graph_ms"] = 1e3 * float(np.median(graphs))
     info = {**parts, "cg_iterations": float(np.median(its)), "world_cg_iterations": float(np.median(world_its)),
             "setup_s": setup, "preconditioner": type(pre).__name__,
             "blocks": getattr(pre, "blocks", None), "precond_mb": getattr(pre, "memory_bytes", 0) / 1e6}
@@ -88,6 +92,7 @@ def main(argv=None) -> int:
     ap.add_argument("--solver", default="auto")
     ap.add_argument("--preconditioner", default="auto", help="pcg's: auto, blocks, dense, host")
     ap.add_argument("--share-tolerance", type=float, default=1e-10, help="blocks: when worlds of one mesh share")
+    ap.add_argument("--precision", default="float32", choices=["float32", "float64"], help="pcg's dense inverses")
     ap.add_argument("--out", default="out/batch")
     args = ap.parse_args(argv)
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
@@ -95,7 +100,8 @@ def main(argv=None) -> int:
     scenes = [build_scene(ROOT / "scenes/diamond.py", d) for d in everything]
     print(f"{len(scenes)} designs built in {time.perf_counter() - t0:.1f} s", flush=True)
     rows = []
-    options = {"solver": args.solver, "preconditioner": args.preconditioner, "share_tolerance": args.share_tolerance}
+    options = {"solver": args.solver, "preconditioner": args.preconditioner, "share_tolerance": args.share_tolerance,
+               "precision": args.precision}
     for n in args.sizes:
         t0 = time.perf_counter()
         median, dofs, info = step_median(scenes[:n], args.device, args.steps, args.warmup, **options)
@@ -105,7 +111,8 @@ def main(argv=None) -> int:
               f"CG {info['cg_iterations']:.0f} (a world's mean {info['world_cg_iterations']:.1f})  "
               f"{info['preconditioner']} blocks {info['blocks']} "
               f"{info['precond_mb']:.0f} MB  setup {info['setup_s']:.1f} s  "
-              f"P^-1 {info.get('precond_ms', 0):.2f} ms  A {info.get('operator_ms', 0):.2f} ms", flush=True)
+              f"P^-1 {info.get('precond_ms', 0):.2f} ms  A {info.get('operator_ms', 0):.2f} ms  "
+              f"graphs {info.get('graph_ms', 0):.2f} ms", flush=True)
     alone = None
     if args.alone:
         k = args.alone
