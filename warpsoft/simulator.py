@@ -198,6 +198,7 @@ class Simulator:
         self.last_effector_error: dict[int, float] = {}  # per inverse world, m (is its target getting closer?)
         self.episodes: dict[tuple, bool] = {}  # (what, world) -> whether a warning about it is in force
         self.row_delta_prev = np.zeros(self.rows.num_rows if self.rows is not None else 0)  # rows after the last step
+        self.report_layout = None  # where each world's named rows are (warpsoft.record.Layout), at the first step
         self._stepped = False
         self.values = None  # the actuator inputs of the current step, (rows,)
         # on CUDA, the device part of a step is replayed as graphs when the solver allows it

@@ -21,7 +21,7 @@ from warpsoft.kernels.linear import cg as linalg
 from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
 from warpsoft.kernels.rows import common as row_kernels
 
-from . import watch
+from . import record, watch
 from .errors import SceneError, SimulationError
 from .launch import launch
 from .resolve import RowInputs, solve_inverse
@@ -76,7 +76,7 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     watch.health(sim, stats, host)
     watch.inverted_elements(sim, stats, host)
     if rows is not None:
-        record_rows(sim, stats, host)  # the rows at the new state: what the report records
+        record.record_rows(sim, stats, host)  # the rows at the new state: what the report records
     if sim.rigid is not None:
         for k, (w, name) in enumerate(sim.rigid.names):
             stats.worlds[w].rigid_bodies[name] = (host["rigid_p"][k].copy(), host["rigid_r"][k].copy())
@@ -524,41 +524,6 @@ def row_inputs(host: np.ndarray, values: np.ndarray, delta: np.ndarray, a: slice
     lo_step, hi_step = delta[a] - host[k.MAX_STEP, a], delta[a] + host[k.MAX_STEP, a]
     return RowInputs(force_mode=host[k.FORCE_MODE, a] != 0, value=values[a], lo=host[k.LO, a], hi=host[k.HI, a],
                      dmin=np.clip(host[k.DMIN, a], lo_step, hi_step), dmax=np.clip(host[k.DMAX, a], lo_step, hi_step))
-
-
-def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
-    """Each world's rows at the new state (evaluated on the device by the step), by name, and the
-    Gauss-Seidel statistics, from the step's read (``host``)."""
-    rows = sim.rows
-    targets = rows.set_time(stats.time)  # the step's targets, already on the device
-    delta, points = host["delta"], host["points"][: rows.num_points]
-    lam = host["lam"] if rows.num_columns else np.zeros(rows.num_rows)
-    result = host["resolve"] if rows.num_columns else None
-    aims = watch.actuator_aims(sim) if rows.num_actuators else None  # (all worlds at once)
-    for w, ws in enumerate(stats.worlds):
-        a, acts = rows.actuator_rows(w), rows.actuators[w]
-        ws.actuator_delta = {x.name: float(v) for x, v in zip(acts, delta[a], strict=True)}
-        ws.actuator_lambda = {x.name: float(v) for x, v in zip(acts, lam[a], strict=True)}
-        ws.effectors = rows.effector_positions(w, points)
-        ws.targets = rows.targets(targets, w)
-        ws.effector_error = {e.name: float(np.linalg.norm((ws.effectors[e.name] - ws.targets[e.name])[e.axis_ids]))
-                             for e in rows.effectors[w] if e.target is not None}
-        forces = rows.world_actuators[w] + rows.world_bilateral[w] + rows.world_contacts[w] > 0
-        if rows.world_bilateral[w]:
-            ws.attachments = rows.kind("attachment").forces(lam, w)
-        if rows.world_contacts[w]:
-            watch.contacts(sim, stats, w, host)
-        if forces:
-            watch.linearization(sim, stats, w, host)
-        if acts and sim.model.scenes[w].inverse:
-            watch.out_of_reach(sim, stats, w, delta[a], lam[a])
-        elif acts:
-            watch.actuator_residuals(sim, stats, w, delta[a], aims[a])
-        if forces and not sim.model.scenes[w].inverse:
-            ws.resolve_iterations, ws.resolve_residual = int(result[w, 0]), float(result[w, 1])
-            if not result[w, 2]:
-                stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: Gauss-Seidel stopped after "
-                                      f"{ws.resolve_iterations} sweeps, last change {ws.resolve_residual:.3e}")
 
 
 @contextmanager

@@ -95,22 +95,15 @@ def contacts(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarra
 UNPREDICTED = 0.2  # rows ending this far (relative to the step's largest node motion) from the linear prediction
 
 
-def linearization(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarray]) -> None:
-    """How far the world's rows ended from the step's linear prediction ``delta_free + W lambda``
-    (the step solves the linearized problem; near a buckling point, or with a step too large, the
-    body no longer moves as predicted). A warning when the gap exceeds ``UNPREDICTED`` times the
-    step's largest node motion."""
-    rows, ws = sim.rows, stats.worlds[w]
-    s, e = rows.world_row_start[w], rows.world_row_start[w + 1]
-    nf = int(host["force_rows"][w])
-    predicted = host["delta_free"][s:e] + host["W"][s:e, :nf] @ host["lam"][s:s + nf]
-    ws.linearization_error = gap = float(np.abs(host["delta"][s:e] - predicted).max()) if e > s else 0.0
-    motion = float(np.sqrt(host["health_step"][w]))
-    if begins(sim, ("unpredicted", w), gap > UNPREDICTED * motion and gap > 1e-9 * sim.size):
-        stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: the rows ended {gap:.3g} away from the "
-                              f"step's linear prediction, for nodes that moved up to {motion:.3g} m: the "
-                              "linearization no longer predicts the motion (near a buckling point, or a step too "
-                              "large); smaller steps (dt, max_step) follow it better")
+def unpredicted_message(sim: Simulator, stats: StepStats, w: int, gap: float, motion: float) -> str:
+    """The warning of a world whose rows ended ``gap`` (m, m^3) from the step's linear prediction
+    ``delta_free + W lambda``, more than ``UNPREDICTED`` times the step's largest node motion
+    ``motion`` (m): the step solves the linearized problem, and near a buckling point, or with a
+    step too large, the body no longer moves as predicted (the gaps are measured for all worlds
+    at once in :mod:`warpsoft.record`)."""
+    return (f"step {stats.index}{sim.world_label(w)}: the rows ended {gap:.3g} away from the step's linear "
+            f"prediction, for nodes that moved up to {motion:.3g} m: the linearization no longer predicts the "
+            "motion (near a buckling point, or a step too large); smaller steps (dt, max_step) follow it better")
 
 
 MISSED_COMMAND = 0.05  # relative miss of a displacement command, past which a direct-model actuator warns
@@ -119,35 +112,19 @@ MISSED_COMMAND = 0.05  # relative miss of a displacement command, past which a d
 def actuator_aims(sim: Simulator) -> np.ndarray:
     """What each row's actuator was asked for this step, ``(rows,)``: its input within its bounds
     and within its step limit from where it was (for all worlds at once; read by
-    :func:`actuator_residuals` world by world)."""
+    :mod:`warpsoft.record`)."""
     g, k, prev = sim.gauss_seidel.host, gs_kernels, sim.row_delta_prev
     aim = np.clip(sim.values, g[k.DMIN], g[k.DMAX])
     return np.clip(aim, prev - g[k.MAX_STEP], prev + g[k.MAX_STEP])
 
 
-def actuator_residuals(sim: Simulator, stats: StepStats, w: int, delta: np.ndarray, aims: np.ndarray) -> None:
-    """Direct model: how far each displacement-driven actuator is from what it was asked for
-    this step (``aims``, :func:`actuator_aims` of the world's rows), in its units (cable m,
-    cavity m^3); a warning when one misses by more than ``MISSED_COMMAND`` of the command (and
-    more than a floor tied to the model's size)."""
-    rows, ws = sim.rows, stats.worlds[w]
-    g, k, start = sim.gauss_seidel.host, gs_kernels, rows.world_row_start[w]
-    prev = sim.row_delta_prev
-    missed = []
-    misses = np.abs(delta - aims)
-    for i, act in enumerate(rows.actuators[w]):
-        if g[k.FORCE_MODE, start + i]:
-            continue
-        aim, miss = float(aims[i]), float(misses[i])
-        ws.actuator_residual[act.name] = miss
-        floor = 1e-4 * (sim.size if act.kind == "cable" else sim.size ** 3)
-        if miss > MISSED_COMMAND * abs(aim) + floor:
-            missed.append(f"{act.name} ({float(delta[i]):.4g} for {aim:.4g})")
-    prev[start:start + len(delta)] = delta
-    if begins(sim, ("missed", w), bool(missed)):
-        stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: actuator(s) missing their command: "
-                              f"{', '.join(missed)}: the body cannot follow (too soft, a large step, or bounds); "
-                              "see each step's actuator_residual")
+def missed_message(sim: Simulator, stats: StepStats, w: int, which: list[str]) -> str:
+    """The warning of a direct-model world whose displacement-driven actuators ``which`` (each
+    "name (reached for asked)") miss what they were asked for this step (:func:`actuator_aims`) by
+    more than ``MISSED_COMMAND`` of the command and a floor tied to the model's size (the misses
+    are measured for all worlds at once in :mod:`warpsoft.record`)."""
+    return (f"step {stats.index}{sim.world_label(w)}: actuator(s) missing their command: {', '.join(which)}: the "
+            "body cannot follow (too soft, a large step, or bounds); see each step's actuator_residual")
 
 
 OUT_OF_REACH = 1e-3  # effector error, in model sizes, past which an inverse world says what holds it back
