@@ -56,3 +56,26 @@ def test_a_time_step_too_large_for_one_linearization_is_iterated(scene_module):
     calm = run(scene_module, 12, mesh_size=0.005)  # the default step: one linearization does
     assert all(s.newton_iterations == 1 for s in calm)
     assert max(s.linearization_error for s in calm) < 1e-5
+
+
+def test_a_batch_reports_each_world_as_alone_and_warns_for_the_world_that_misses(scene_module):
+    """The report of a batch is computed for all worlds at once (warpsoft/record.py). A very soft
+    finger beside the default one: only the soft one's world is named in the missed-command
+    warning and shows the miss in its residual; the default one's rows are those it has alone
+    (to the Newton tolerance: the batch's worlds iterate together)."""
+    import warpsoft as ws
+
+    build = scene_module("scenes/finger.py").build
+    sim = ws.Simulator(ws.finalize([build(young_modulus=1e3, mesh_size=0.005), build(mesh_size=0.005)]),
+                       solver="direct", newton_iterations=10)
+    batch = [sim.step() for _ in range(40)]
+    said = [m for s in batch for m in s.warnings if "missing their command" in m]
+    assert said and all("(world 0)" in m for m in said)
+    assert max(s.worlds[0].actuator_residual["cable"] for s in batch) > 1e-3
+    alone = run(scene_module, 40, mesh_size=0.005)
+    for b, want in zip(batch, alone, strict=True):
+        got = b.worlds[1]
+        assert got.actuator_residual["cable"] < 1e-5
+        assert np.isclose(got.actuator_delta["cable"], want.actuator_delta["cable"], rtol=1e-4, atol=1e-9)
+        assert np.isclose(got.actuator_lambda["cable"], want.actuator_lambda["cable"], rtol=1e-3, atol=1e-9)
+        assert np.isclose(got.linearization_error, want.linearization_error, rtol=5e-2, atol=1e-8)

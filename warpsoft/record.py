@@ -63,6 +63,7 @@ class Layout:
         self.floors = np.array(floors)
         self.world_of_row = np.searchsorted(rows.world_row_start, np.arange(rows.num_rows), side="right") - 1
         self.forces = rows.world_actuators + rows.world_bilateral + rows.world_contacts > 0
+        self.gaps = np.zeros(worlds)  # each world's gap to its last linear prediction (keep_gaps)
 
 
 def layout(sim: Simulator) -> Layout:
@@ -110,22 +111,31 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
                                       f"{ws.resolve_iterations} sweeps, last change {ws.resolve_residual:.3e}")
 
 
+def keep_gaps(sim: Simulator, host: dict[str, np.ndarray], moved: np.ndarray) -> None:
+    """After a Newton iteration, from its read ``host``: how far each world's rows ended from the
+    iteration's linear prediction ``delta_free + W lambda`` (``W``'s columns are the world's own
+    force rows, the first ``force_rows[w]``), the largest per world (its units: m, m^3), kept for
+    the worlds that ``moved`` in it. A world held while others iterate keeps the gap of its own
+    last iteration: the later iterations' predictions do not apply to it (it does not move)."""
+    rows, lay = sim.rows, layout(sim)
+    if not (rows.num_rows and rows.num_columns):
+        return
+    gaps = np.zeros(sim.model.num_worlds)
+    W = host["W"]
+    first = rows.world_row_start[lay.world_of_row]
+    j = np.arange(W.shape[1])
+    used = j[None, :] < host["force_rows"][lay.world_of_row][:, None]
+    lam = np.where(used, host["lam"][np.minimum(first[:, None] + j[None, :], rows.num_rows - 1)], 0.0)
+    predicted = host["delta_free"] + np.einsum("ij,ij->i", W, lam)
+    np.maximum.at(gaps, lay.world_of_row, np.abs(host["delta"] - predicted))
+    lay.gaps[moved] = gaps[moved]
+
+
 def linearization_gaps(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], lay: Layout) -> list[float]:
-    """How far each world's rows ended from the step's linear prediction ``delta_free + W lambda``
-    (``W``'s columns are the world's own force rows, the first ``force_rows[w]``), the largest per
-    world (its units: m, m^3); the warning of :func:`warpsoft.watch.linearization` for the worlds
-    where it exceeds ``UNPREDICTED`` times the step's largest node motion."""
-    rows, worlds = sim.rows, sim.model.num_worlds
-    gaps = np.zeros(worlds)
-    if rows.num_rows and rows.num_columns:
-        W = host["W"]
-        width = W.shape[1]
-        first = rows.world_row_start[lay.world_of_row]
-        j = np.arange(width)
-        used = j[None, :] < host["force_rows"][lay.world_of_row][:, None]
-        lam = np.where(used, host["lam"][np.minimum(first[:, None] + j[None, :], rows.num_rows - 1)], 0.0)
-        predicted = host["delta_free"] + np.einsum("ij,ij->i", W, lam)
-        np.maximum.at(gaps, lay.world_of_row, np.abs(host["delta"] - predicted))
+    """Each world's gap to its last linear prediction (:func:`keep_gaps`), and the warning of
+    :func:`warpsoft.watch.unpredicted_message` for the worlds where it exceeds ``UNPREDICTED``
+    times the step's largest node motion."""
+    gaps, worlds = lay.gaps, sim.model.num_worlds
     motion = np.sqrt(host["health_step"])
     far = lay.forces & (gaps > watch.UNPREDICTED * motion) & (gaps > 1e-9 * sim.size)
     for w in range(worlds):

@@ -63,6 +63,8 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
                                                    ("linearize", lambda: relinearize(sim, actuated))],
                        capturable(sim))
             watch.health(sim, stats, host, warn=False)
+        if rows is not None:
+            record.keep_gaps(sim, host, ~newton.done)  # (the worlds that moved in this iteration)
         if not newton.go_on():
             break
         if first:  # the next solves start their corrections from 0: keep the step's motion to warm-start the next step
