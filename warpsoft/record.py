@@ -121,11 +121,13 @@ def keep_gaps(sim: Simulator, host: dict[str, np.ndarray], moved: np.ndarray) ->
     if not (rows.num_rows and rows.num_columns):
         return
     gaps = np.zeros(sim.model.num_worlds)
-    W = host["W"]
-    first = rows.world_row_start[lay.world_of_row]
+    W = host["W"][:, :int(host["force_rows"].max(initial=0))]  # (the columns in use: the most force rows of a world)
     j = np.arange(W.shape[1])
-    used = j[None, :] < host["force_rows"][lay.world_of_row][:, None]
-    lam = np.where(used, host["lam"][np.minimum(first[:, None] + j[None, :], rows.num_rows - 1)], 0.0)
+    # each world's multipliers in its columns' order (0 past its force rows), repeated for its rows
+    starts = rows.world_row_start
+    lam = np.where(j[None, :] < host["force_rows"][:, None],
+                   host["lam"][np.minimum(starts[:-1, None] + j[None, :], rows.num_rows - 1)], 0.0)
+    lam = np.repeat(lam, np.diff(starts), axis=0)
     predicted = host["delta_free"] + np.einsum("ij,ij->i", W, lam)
     np.maximum.at(gaps, lay.world_of_row, np.abs(host["delta"] - predicted))
     lay.gaps[moved] = gaps[moved]
