@@ -84,7 +84,7 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
     if len(lay.target_index):  # every targeted effector's distance to its target on its controlled axes (m)
         off = (points[lay.target_point] - targets[lay.target_index]) * lay.target_axes
         errors = np.sqrt(np.einsum("ij,ij->i", off, off)).tolist()
-    gaps = linearization_gaps(sim, stats, host, lay)
+    gaps = unpredicted(sim, stats, host, lay)
     missed = actuator_misses(sim, stats, delta, lay) if len(lay.direct_rows) else []
     delta_l, lam_l = delta.tolist(), lam.tolist()
     result = host["resolve"].tolist() if rows.num_columns else None
@@ -133,7 +133,7 @@ def keep_gaps(sim: Simulator, host: dict[str, np.ndarray], moved: np.ndarray) ->
     lay.gaps[moved] = gaps[moved]
 
 
-def linearization_gaps(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], lay: Layout) -> list[float]:
+def unpredicted(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], lay: Layout) -> list[float]:
     """Each world's gap to its last linear prediction (:func:`keep_gaps`), and the warning of
     :func:`warpsoft.watch.unpredicted_message` for the worlds where it exceeds ``UNPREDICTED``
     times the step's largest node motion."""
