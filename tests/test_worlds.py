@@ -23,6 +23,11 @@ def dynamic_trio(scene_module):
 
 
 def run_alone_and_together(scenes, steps, **options):
+    """Each scene alone, then all as one model. With ``pcg``, both take block CG (by default a
+    model of one world takes column CG, and it would then match its batch to the CG tolerance
+    only, not to round-off)."""
+    if options.get("solver") == "pcg":
+        options["block_cg"] = True
     alone = []
     for s in scenes:
         sim = ws.Simulator(s, **options)

@@ -93,6 +93,8 @@ def main(argv=None) -> int:
     ap.add_argument("--preconditioner", default="auto", help="pcg's: auto, blocks, dense, host")
     ap.add_argument("--share-tolerance", type=float, default=1e-10, help="blocks: when worlds of one mesh share")
     ap.add_argument("--precision", default="float32", choices=["float32", "float64"], help="pcg's dense inverses")
+    ap.add_argument("--column-cg", action="store_true", help="pcg: each column its own CG (block_cg=False)")
+    ap.add_argument("--tolerance", type=float, default=1e-6, help="CG relative residual")
     ap.add_argument("--out", default="out/batch")
     args = ap.parse_args(argv)
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
@@ -101,7 +103,9 @@ def main(argv=None) -> int:
     print(f"{len(scenes)} designs built in {time.perf_counter() - t0:.1f} s", flush=True)
     rows = []
     options = {"solver": args.solver, "preconditioner": args.preconditioner, "share_tolerance": args.share_tolerance,
-               "precision": args.precision}
+               "precision": args.precision, "tolerance": args.tolerance}
+    if args.solver in ("pcg", "auto"):
+        options["block_cg"] = not args.column_cg
     for n in args.sizes:
         t0 = time.perf_counter()
         median, dofs, info = step_median(scenes[:n], args.device, args.steps, args.warmup, **options)

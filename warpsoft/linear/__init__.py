@@ -38,14 +38,15 @@ def choose(name: str, device) -> str:
 def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: float = 1e-6,
                 max_iterations: int = 2000, graphs: bool = True, check_every: int | None = None,
                 factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
-                share_tolerance: float = 1e-10):
+                share_tolerance: float = 1e-10, block: bool = True):
     """A solver for ``columns`` right-hand sides: ``name`` from :data:`SOLVERS` (``auto`` resolved
     by :func:`choose`). ``check_every`` is v1's residual read-back period (``jacobi`` only);
     ``factorization`` is the direct solver's; ``preconditioner`` ("auto", "host", "dense", "blocks")
     and ``precision`` are the warped preconditioner's. "auto" takes "blocks" (a dense inverse per
     world, :class:`WorldBlocks`) for a model of several worlds on CUDA, and leaves one world to
     :class:`WarpedFactor` (dense on CUDA up to its limit, else host). ``share_tolerance``: when
-    worlds share a block (:class:`WorldBlocks`)."""
+    worlds share a block (:class:`WorldBlocks`). ``block``: ``pcg`` solves a world's columns as one
+    block (:class:`PCG`)."""
     name = choose(name, operator.model.device)
     if name == "direct":
         return SparseDirect(operator, factorization)
@@ -61,7 +62,7 @@ def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: fl
         warp_pre = WorldBlocks(operator, columns, precision, share_tolerance=share_tolerance)
     else:
         warp_pre = WarpedFactor(operator, columns, preconditioner, precision)
-    return PCG(operator, warp_pre, columns, tolerance, max_iterations, graphs)
+    return PCG(operator, warp_pre, columns, tolerance, max_iterations, graphs, block)
 
 
 __all__ = ["PCG", "SOLVERS", "BlockJacobi", "BlockJacobiCG", "SolveResult", "SparseDirect", "SystemOperator",

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from warpsoft.kernels.linear import block_pcg as blockk
 from warpsoft.kernels.linear import cg as slots
 from warpsoft.kernels.linear import pcg as kernels
 
@@ -57,10 +58,14 @@ class PCG:
         tolerance: relative residual ``|r| / |b|`` every column must reach.
         max_iterations: cap; reaching it is reported, not hidden.
         graph: on CUDA, capture the whole solve once per pair of buffers and replay it.
+        block: a world's right-hand sides share one search space (block CG, O'Leary's:
+            ``kernels/linear/block_pcg.py``) when there are at most ``MAX_COLUMNS`` of them and
+            all are solved (not bounded); each column then stops with its world, when all of
+            the world's columns reached the tolerance. False: each column its own CG.
     """
 
     def __init__(self, operator: SystemOperator, preconditioner, columns: int, tolerance: float = 1e-6,
-                 max_iterations: int = 2000, graph: bool = True):
+                 max_iterations: int = 2000, graph: bool = True, block: bool = True):
         m = operator.model
         self.op, self.precond = operator, preconditioner
         self.tolerance, self.max_iterations = float(tolerance), int(max_iterations)
@@ -82,6 +87,15 @@ class PCG:
         self.sizes_d = wp.array(self.sizes, dtype=wp.int32, device=m.device)
         self.branch = wp.zeros(len(self.sizes), dtype=wp.int32, device=m.device)
         self.branches = m.device.is_cuda  # a bounded solve by size branches; else the count is read
+        self.block = bool(block) and 1 < shape[0] <= blockk.MAX_COLUMNS
+        if self.block:
+            k, worlds = shape[0], m.num_worlds
+            pairs = [(a, b) for a in range(k) for b in range(a, k)]
+            self.pair_a = wp.array([a for a, _ in pairs], dtype=wp.int32, device=m.device)
+            self.pair_b = wp.array([b for _, b in pairs], dtype=wp.int32, device=m.device)
+            self.gram = wp.zeros((worlds, blockk.NUM_GRAMS, k, k), dtype=wp.float64, device=m.device)
+            self.coef = wp.zeros((worlds, 2, k, k), dtype=wp.float64, device=m.device)
+            self.wdone = wp.zeros(worlds, dtype=wp.int32, device=m.device)
 
     def bound(self, count: wp.array, offset: int = 0) -> None:
         """Solve only the right-hand sides ``c < offset + count[0]`` (``count`` an int32 device array
@@ -157,7 +171,9 @@ class PCG:
         k = min(b.shape[0], self.r.shape[0])
         self.scal.zero_()  # right-hand sides left out read as converged (b = 0)
         self.info.zero_()
-        if self.count is None or k == 1 or (self.branches and len(self.sizes) == 1):  # all of them
+        if self.block and self.count is None and k == self.r.shape[0]:  # a world's columns as one block
+            self._block_columns(b, x)
+        elif self.count is None or k == 1 or (self.branches and len(self.sizes) == 1):  # all of them
             self._columns(b, x, k)
         elif not self.branches:  # (the CPU device: the count is host memory)
             self._columns(b, x, min(k, self.offset + int(self.count.numpy()[0])))
@@ -195,6 +211,51 @@ class PCG:
         kernels.launch_nodes(kernels.pcg_rz, k, n, [r, z, m.node_world, scal], d)
         launch(kernels.pcg_direction, (k, n), inputs=[z, p, m.node_world, scal], outputs=[self.active], device=d)
         self._scalars(scal, 1)
+
+    def _block_columns(self, b: wp.array, x: wp.array) -> None:
+        """The block solve of all right-hand sides (see ``kernels/linear/block_pcg.py``)."""
+        m, d = self.op.model, self.op.model.device
+        k, n = x.shape
+        launch(slots.project, (k, n), inputs=[m.mask], outputs=[x], device=d)
+        self.op.apply(x, self.ap)
+        self.active.zero_()
+        self.gram.zero_()
+        kernels.launch_nodes(kernels.pcg_residual, k, n, [b, self.ap, m.mask, self.r, m.node_world, self.scal], d)
+        self._block_scalars(0)  # (the worlds held, the columns left out)
+        self.precond.apply(self.r, self.z)
+        launch(blockk.block_begin, (k, n), inputs=[self.r, self.z, x, self.p, m.node_world, self.scal], device=d)
+        self._gram(self.r, self.z, blockk.G_RZ)
+        wp.capture_while(self.active, self._block_iteration, x=x)
+
+    def _block_iteration(self, x: wp.array) -> None:
+        """One block iteration: ``A P`` and ``P^T A P``, ``alpha``, ``X`` and ``R``, ``Z = P^-1 R`` and
+        ``R^T Z``, ``beta`` and the stop test, ``P``."""
+        m, d = self.op.model, self.op.model.device
+        k, n = x.shape
+        self.op.apply(self.p, self.ap, self.scal)  # the worlds done are skipped, here and below
+        self._gram(self.p, self.ap, blockk.G_PAP)
+        launch(blockk.block_alpha, m.num_worlds, inputs=[self.gram, self.wdone, k],
+               outputs=[self.coef, self.active], device=d)
+        kernels.launch_nodes(blockk.block_update, k, n, [x, self.r, self.p, self.ap, m.mask, m.node_world, self.scal,
+                                                         self.wdone, self.coef], d)
+        self.precond.apply(self.r, self.z)
+        self._gram(self.r, self.z, blockk.G_RZ_NEW)
+        self._block_scalars(1)
+        launch(blockk.block_direction, (k, n), inputs=[self.z, self.p, m.node_world, self.scal, self.wdone, self.coef],
+               device=d)
+        launch(blockk.take_direction, (k, n), inputs=[self.z, self.p, m.node_world, self.scal, self.wdone], device=d)
+
+    def _gram(self, u: wp.array, v: wp.array, slot: int) -> None:
+        m = self.op.model
+        blockk.launch_pairs(blockk.gram, self.pair_a.shape[0], m.num_nodes,
+                            [u, v, m.mask, self.pair_a, self.pair_b, m.node_world, self.scal, self.wdone, slot,
+                             self.gram], m.device)
+
+    def _block_scalars(self, advance: int) -> None:
+        launch(blockk.block_scalars, self.op.model.num_worlds,
+               inputs=[self.scal, self.gram, self.tolerance, self.max_iterations, advance, self.held, self.r.shape[0]],
+               outputs=[self.wdone, self.coef, self.info, self.active],
+               device=self.op.model.device)
 
     def _scalars(self, scal: wp.array, advance: int) -> None:
         launch(kernels.pcg_scalars, scal.shape[:2],
