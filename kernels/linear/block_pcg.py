@@ -22,7 +22,7 @@ sides then share one direction instead of breaking the factorization.
 import warp as wp
 
 from .cg import B2, DONE, ITS, R2, R2_LAST
-from .pcg import ITERATIONS, NODES_PER_BLOCK, NONFINITE, block_world
+from .pcg import ITERATIONS, NODES_PER_BLOCK, NONFINITE, block_add, block_world, node_add
 
 MAX_COLUMNS = 16  # a block holds at most this many right-hand sides (k^2 / 2 reductions an iteration)
 G_PAP = wp.constant(0)  # gram[w, G_PAP]: P^T A P
@@ -187,10 +187,9 @@ def block_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p
     (launched over ``(k, node blocks)``; ``p`` and ``A p`` are only read)."""
     a, blk, lane = wp.tid()
     i0, i1, w, uniform = block_world(blk, r.shape[1], world)
-    s = wp.float64(0.0)
+    rr = wp.float64(0.0)
     i = i0 + lane
-    skip = uniform and not (running(wdone, w) and live(scal, a, w))
-    if skip:
+    if uniform and not (running(wdone, w) and live(scal, a, w)):
         i = i1
     while i < i1:
         wi = world[i]
@@ -205,28 +204,9 @@ def block_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p
             x[a, i] = x[a, i] + dx
             ri = r[a, i] - wp.cw_mul(mask[i], dr)
             r[a, i] = ri
-            if uniform:
-                s += wp.dot(ri, ri)
-            else:
-                wp.atomic_add(scal, a, wi, R2, wp.dot(ri, ri))
+            rr = node_add(uniform, rr, wp.dot(ri, ri), scal, a, wi, R2)
         i += wp.block_dim()
-    total = wp.tile_sum(wp.tile(s))
-    if uniform and not skip and lane == 0:
-        wp.atomic_add(scal, a, w, R2, total[0])
-
-
-@wp.kernel
-def block_begin(r: wp.array2d(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d), x: wp.array2d(dtype=wp.vec3d),
-                p: wp.array2d(dtype=wp.vec3d), world: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64)):
-    """``p = z``; a column with ``b = 0`` has the solution 0, whatever its warm start: its ``x``,
-    ``r`` and ``p`` are cleared (launched over ``(k, n)``)."""
-    c, i = wp.tid()
-    if live(scal, c, world[i]):
-        p[c, i] = z[c, i]
-    else:
-        x[c, i] = wp.vec3d()
-        r[c, i] = wp.vec3d()
-        p[c, i] = wp.vec3d()
+    block_add(rr, lane, uniform, scal, a, w, R2)
 
 
 @wp.kernel

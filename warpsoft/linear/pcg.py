@@ -223,7 +223,7 @@ class PCG:
         kernels.launch_nodes(kernels.pcg_residual, k, n, [b, self.ap, m.mask, self.r, m.node_world, self.scal], d)
         self._block_scalars(0)  # (the worlds held, the columns left out)
         self.precond.apply(self.r, self.z)
-        launch(blockk.block_begin, (k, n), inputs=[self.r, self.z, x, self.p, m.node_world, self.scal], device=d)
+        kernels.launch_nodes(kernels.pcg_begin, k, n, [self.r, self.z, x, self.p, m.node_world, self.scal], d)
         self._gram(self.r, self.z, blockk.G_RZ)
         wp.capture_while(self.active, self._block_iteration, x=x)
 
