@@ -175,5 +175,5 @@ def test_a_share_tolerance_shares_dynamic_designs_and_keeps_the_answer():
     assert np.abs(runs[0.01][1] - runs[1e-10][1]).max() < 1e-7 * moved
     with pytest.raises(ws.SceneError, match="share_tolerance"):
         ws.Simulator(scenes[0], share_tolerance=1.5)
-    with pytest.raises(ValueError, match="auto, host, dense, blocks, got 'block'"):
+    with pytest.raises(ValueError, match="auto, host, dense, blocks, factors, got 'block'"):
         ws.Simulator(scenes[0], solver="pcg", preconditioner="block")

@@ -269,7 +269,7 @@ def main(argv=None) -> int:
                     help="CUDA: time each kernel and copy of the uncaptured step (kernels.md)")
     ap.add_argument("--precision", choices=["float32", "float64"], default="float32",
                     help="pcg's dense warped inverse")
-    ap.add_argument("--preconditioner", choices=["auto", "host", "dense", "blocks"], default="auto",
+    ap.add_argument("--preconditioner", choices=["auto", "host", "dense", "blocks", "factors"], default="auto",
                     help="pcg's warped preconditioner (auto: dense on CUDA up to 12k free DOFs, host above)")
     ap.add_argument("--factor-reuse", type=float, default=0.0,
                     help="direct: the Simulator's factor_reuse (0: a factorization at every linearization)")

@@ -16,13 +16,14 @@ import warp as wp
 
 from .blocks import WorldBlocks
 from .direct import SparseDirect
+from .factors import WorldFactors
 from .jacobi import BlockJacobi, BlockJacobiCG
 from .operator import SystemOperator
 from .pcg import PCG, SolveResult
 from .warped import WarpedFactor
 
 SOLVERS = ("auto", "pcg", "direct", "jacobi")
-PRECONDITIONERS = ("auto", "host", "dense", "blocks")  # pcg's
+PRECONDITIONERS = ("auto", "host", "dense", "blocks", "factors")  # pcg's
 
 
 def choose(name: str, device) -> str:
@@ -41,10 +42,11 @@ def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: fl
                 share_tolerance: float = 1e-10, block: bool = True):
     """A solver for ``columns`` right-hand sides: ``name`` from :data:`SOLVERS` (``auto`` resolved
     by :func:`choose`). ``check_every`` is v1's residual read-back period (``jacobi`` only);
-    ``factorization`` is the direct solver's; ``preconditioner`` ("auto", "host", "dense", "blocks")
-    and ``precision`` are the warped preconditioner's. "auto" takes "blocks" (a dense inverse per
-    world, :class:`WorldBlocks`) for a model of several worlds on CUDA, and leaves one world to
-    :class:`WarpedFactor` (dense on CUDA up to its limit, else host). ``share_tolerance``: when
+    ``factorization`` is the direct solver's; ``preconditioner`` ("auto", "host", "dense", "blocks",
+    "factors") and ``precision`` are the warped preconditioner's. "auto" takes "blocks" (a dense
+    inverse per world, :class:`WorldBlocks`) for a model of several worlds on CUDA, and leaves one
+    world to :class:`WarpedFactor` (dense on CUDA up to its limit, else host); "factors" keeps a
+    sparse factor per world instead (:class:`WorldFactors`). ``share_tolerance``: when
     worlds share a block (:class:`WorldBlocks`). ``block``: ``pcg`` solves a world's columns as one
     block (:class:`PCG`)."""
     name = choose(name, operator.model.device)
@@ -58,7 +60,9 @@ def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: fl
     model = operator.model
     if preconditioner not in PRECONDITIONERS:
         raise ValueError(f"preconditioner must be one of {', '.join(PRECONDITIONERS)}, got {preconditioner!r}")
-    if preconditioner == "blocks" or (preconditioner == "auto" and model.device.is_cuda and model.num_worlds > 1):
+    if preconditioner == "factors":
+        warp_pre = WorldFactors(operator, columns, precision, share_tolerance=share_tolerance)
+    elif preconditioner == "blocks" or (preconditioner == "auto" and model.device.is_cuda and model.num_worlds > 1):
         warp_pre = WorldBlocks(operator, columns, precision, share_tolerance=share_tolerance)
     else:
         warp_pre = WarpedFactor(operator, columns, preconditioner, precision)
@@ -66,4 +70,4 @@ def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: fl
 
 
 __all__ = ["PCG", "SOLVERS", "BlockJacobi", "BlockJacobiCG", "SolveResult", "SparseDirect", "SystemOperator",
-           "WarpedFactor", "WorldBlocks", "choose", "make_solver"]
+           "WarpedFactor", "WorldBlocks", "WorldFactors", "choose", "make_solver"]

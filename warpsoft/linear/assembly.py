@@ -27,28 +27,28 @@ from .operator import SystemOperator
 SOLVE_ENTRIES = 1 << 24
 
 
-class Assembly:
-    """``A`` over the free DOFs, lower triangle, CSC, with its pattern analysed once.
+class Pattern:
+    """The lower triangle of a symmetric matrix over its free DOFs, compressed by columns, from
+    the (row, col) places of a list of entries (element block numbers, duplicates summed).
+
+    Args:
+        rows, cols: ``(entries,)`` each entry's place among all DOFs.
+        free: ``(dofs,)`` bool, the DOFs kept (the others are fixed: removed from the system).
 
     Attributes:
-        free: ``(f,)`` ids of the free DOFs (``3 node + axis``) in the model's numbering.
-        indptr, indices: the CSC pattern of the lower triangle, ``(f + 1,)`` and ``(nnz,)``.
+        free: ``(f,)`` ids of the free DOFs among all; ``size`` ``f``; ``renum`` ``(dofs,)`` a DOF's
+            place among the free ones (-1: fixed).
+        indptr, indices: the CSC pattern of the lower triangle, ``(f + 1,)`` and ``(nnz,)``;
+            ``columns`` ``(nnz,)`` each slot's column; ``diagonal`` ``(f,)`` the diagonal's slots.
+        keep, slot: the entries kept (free, lower) and the slot each adds into.
     """
 
-    def __init__(self, operator: SystemOperator):
-        self.op = operator
-        model = operator.model
-        pairs = operator.elastic.block_nodes()  # (blocks, 2): the nodes each element block couples
-        # entry (block, i, j) of the (blocks, 9) array -> (row, col) in the full matrix
-        rows = 3 * pairs[:, 0, None, None] + np.arange(3)[None, :, None]
-        cols = 3 * pairs[:, 1, None, None] + np.arange(3)[None, None, :]
-        rows, cols = (a.ravel() for a in np.broadcast_arrays(rows, cols))
-        free = model.mask_np.ravel() > 0
+    def __init__(self, rows: np.ndarray, cols: np.ndarray, free: np.ndarray):
         self.free = np.flatnonzero(free)
         self.size = len(self.free)
-        renum = np.full(model.num_dofs, -1, dtype=np.int64)
+        renum = np.full(len(free), -1, dtype=np.int64)
         renum[self.free] = np.arange(self.size)
-        self.renum = renum  # a model DOF's place among the free ones (-1: fixed)
+        self.renum = renum
         r, c = renum[rows], renum[cols]
         self.keep = np.flatnonzero((r >= 0) & (c >= 0) & (r >= c))  # free, lower triangle
         key = c[self.keep] * self.size + r[self.keep]  # column-major order = CSC order
@@ -60,6 +60,29 @@ class Assembly:
         self.nnz = len(unique)
         self.diagonal = self.indptr[:-1]  # the first entry of each lower column is its diagonal
         assert np.array_equal(self.indices[self.diagonal], np.arange(self.size))
+
+    def lower_values(self, entries: np.ndarray, diagonal: np.ndarray | None = None) -> np.ndarray:
+        """The ``nnz`` values of the lower triangle: the ``entries`` summed into their slots, plus
+        ``diagonal`` ``(dofs,)`` (all DOFs) on the diagonal."""
+        vals = np.bincount(self.slot, weights=entries[self.keep], minlength=self.nnz)
+        if diagonal is not None:
+            vals[self.diagonal] += diagonal[self.free]
+        return vals
+
+
+class Assembly(Pattern):
+    """``A`` over the free DOFs, lower triangle, CSC, with its pattern analysed once (attributes:
+    :class:`Pattern`'s)."""
+
+    def __init__(self, operator: SystemOperator):
+        self.op = operator
+        model = operator.model
+        pairs = operator.elastic.block_nodes()  # (blocks, 2): the nodes each element block couples
+        # entry (block, i, j) of the (blocks, 9) array -> (row, col) in the full matrix
+        rows = 3 * pairs[:, 0, None, None] + np.arange(3)[None, :, None]
+        cols = 3 * pairs[:, 1, None, None] + np.arange(3)[None, None, :]
+        rows, cols = (a.ravel() for a in np.broadcast_arrays(rows, cols))
+        super().__init__(rows, cols, model.mask_np.ravel() > 0)
         self.mass = None if model.mass is None else np.repeat(model.mass_np, 3)[self.free]
         self.blocks = wp.zeros(operator.elastic.num_blocks, dtype=wp.mat33d, device=model.device)
 
@@ -67,8 +90,7 @@ class Assembly:
         """The ``nnz`` values of the lower triangle at the operator's current rotations and scales."""
         op = self.op
         op.elastic.blocks(op.rot, self.blocks)
-        blocks = self.blocks.numpy().reshape(-1)
-        vals = op.stiffness_scale * np.bincount(self.slot, weights=blocks[self.keep], minlength=self.nnz)
+        vals = op.stiffness_scale * self.lower_values(self.blocks.numpy().reshape(-1))
         if op.mass_scale != 0.0:
             vals[self.diagonal] += op.mass_scale * self.mass
         return vals
@@ -86,10 +108,10 @@ class CholmodFactor:
 
     name = "cholmod"
 
-    def __init__(self, assembly: Assembly, dofs: tuple[int, int] | None = None):
-        """``dofs``: ``(lo, hi)``, the factor of ``A`` over the free DOFs ``lo:hi`` alone, a
-        diagonal block of ``A`` (a world's, see :class:`WorldsCholmod`); its solves and values
-        are then of those DOFs."""
+    def __init__(self, assembly: Pattern, dofs: tuple[int, int] | None = None):
+        """``assembly``: the pattern (an :class:`Assembly`, or any :class:`Pattern`). ``dofs``:
+        ``(lo, hi)``, the factor of ``A`` over the free DOFs ``lo:hi`` alone, a diagonal block of
+        ``A`` (a world's, see :class:`WorldsCholmod`); its solves and values are then of those DOFs."""
         import cvxopt
         from cvxopt import cholmod
 
@@ -113,6 +135,23 @@ class CholmodFactor:
         if self._symbolic is None:
             self._symbolic = self._cholmod.symbolic(self._matrix, uplo="L")
         self._cholmod.numeric(self._matrix, self._symbolic)
+
+    def lower(self, values: np.ndarray) -> tuple[sp.csc_matrix, np.ndarray]:
+        """Factorize ``values`` and return the factor itself: ``L`` ``(f, f)``, lower, CSC with sorted
+        indices, and ``order`` ``(f,)``, with ``A[order][:, order] = L L^T`` (the DOF at each of the
+        factor's places). Reading ``L`` out of CHOLMOD (cvxopt's ``getfactor``) leaves its factor
+        unusable, so each call analyses anew (the same pattern gives the same ordering and the
+        same supernodes) and the factor serves no solve afterwards."""
+        self._symbolic = None
+        self.factorize(values)
+        order = self._cvxopt.matrix(np.arange(self.size, dtype=float))
+        self._cholmod.solve(self._symbolic, order, sys=7)  # (P b)[i] = b[order[i]]
+        L = self._cholmod.getfactor(self._symbolic)
+        self._symbolic = None
+        rows, cols, vals = (np.asarray(a).ravel() for a in (L.I, L.J, L.V))
+        L = sp.csc_matrix((vals, (rows, cols)), shape=(self.size, self.size))
+        L.sort_indices()
+        return L, np.asarray(order).ravel().round().astype(np.int64)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^-1 b`` for ``b`` of shape ``(f, k)`` (or ``(f,)``), in runs of columns of at most

@@ -47,7 +47,86 @@ TILE_THREADS = 128  # threads of a tile
 TILED_FROM = 8  # worlds of one block from which its product is tiled (below, streamed)
 
 
-class WorldBlocks(WarpedFrames):
+class WorldGroups(WarpedFrames):
+    """What the preconditioners kept world by world share: each world's mesh (its elements' local
+    node ids and supports, as a key) and free DOFs, which worlds share one factorization (the same
+    mesh and supports, systems proportional at the first factorization: :meth:`_group`), and the
+    CG scalars of the solver served, by which a world whose columns all converged skips its work.
+
+    Attributes: ``local_free`` (per world, its free DOFs ``3 i + a`` in its own numbering),
+    ``mesh_of`` (per world, its mesh key), ``meshes`` (key -> (local elements, nodes)), and after
+    the first factorization ``block_of`` ``(worlds,)``, ``scale_np`` ``(worlds,)`` (world ``w``'s system
+    is ``scale_np[w]`` times its block's) and ``first_world`` (each block's world).
+    """
+
+    def __init__(self, operator: SystemOperator, columns: int, refresh_ratio: float, refresh_floor: int,
+                 share: bool, share_tolerance: float):
+        super().__init__(operator, refresh_ratio, refresh_floor)
+        m = operator.model
+        if operator.elastic.kinds != ["corotational"]:
+            quad = next(b for b in m.bodies if b.element != "corotational")
+            raise SceneError(f"{type(self).__name__}: body '{quad.name}' of world {quad.world} has {quad.element} "
+                             "elements; the per-world preconditioners take linear tetrahedra only so far: use "
+                             "preconditioner='host' or 'dense', or solver='direct'")
+        self.columns = int(columns)
+        self.share, self.share_tolerance = bool(share), float(share_tolerance)
+        starts, estarts = m.world_node_start.astype(np.int64), m.world_elem_start
+        self.local_free, self.mesh_of, self.meshes = [], [], {}
+        for w in range(m.num_worlds):
+            n0, n1 = int(starts[w]), int(starts[w + 1])
+            local = np.ascontiguousarray(m.tets_np[estarts[w]:estarts[w + 1]] - n0)
+            mask = np.ascontiguousarray(m.mask_np[n0:n1])
+            self.local_free.append(np.flatnonzero(mask.ravel() > 0))
+            key = (n1 - n0, hashlib.sha1(local.tobytes() + mask.tobytes()).hexdigest())
+            self.meshes.setdefault(key, (local, n1 - n0))
+            self.mesh_of.append(key)
+        self.block_of = self.scale_np = self.first_world = None  # decided at the first factorization
+        # the CG scalars of the solver served (:meth:`watch`); until then none reads as converged
+        self._done = wp.zeros((self.columns, m.num_worlds, NUM_SCALARS), dtype=wp.float64, device=m.device)
+
+    def watch(self, scal: wp.array) -> None:
+        """The CG scalars ``(columns, worlds, slots)`` of the solver it serves: a world whose columns
+        are all done skips its work."""
+        self._done = scal
+
+    @property
+    def blocks(self) -> int:
+        """Number of distinct factorizations."""
+        return 0 if self.block_of is None else int(self.block_of.max()) + 1
+
+    def _values(self, blocks: wp.array, w: int) -> np.ndarray:
+        """World ``w``'s system as numbers that fix it: its element blocks (scaled) and, when the
+        system has mass, its nodes' masses (scaled)."""
+        m, op = self.op.model, self.op
+        e0, e1 = int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])
+        values = op.stiffness_scale * blocks[16 * e0:16 * e1].numpy().ravel()
+        if op.mass_scale != 0.0:
+            values = np.concatenate([values, op.mass_scale * m.mass_np[m.world_nodes(w)]])
+        return values
+
+    def _group(self, blocks: wp.array) -> None:
+        """Which worlds share a block: the same mesh and supports, proportional values."""
+        m = self.op.model
+        block_of, scale = np.zeros(m.num_worlds, dtype=np.int64), np.ones(m.num_worlds)
+        reps: dict[tuple, list[tuple[int, np.ndarray]]] = {}  # mesh -> [(block, its first world's values)]
+        count = 0
+        for w in range(m.num_worlds):
+            values = self._values(blocks, w)
+            found = None
+            for b, ref in reps.get(self.mesh_of[w], []) if self.share else []:
+                s = float(values @ ref) / max(float(ref @ ref), np.finfo(float).tiny)
+                if s > 0 and np.abs(values - s * ref).max() <= self.share_tolerance * np.abs(values).max():
+                    found = b, s
+                    break
+            if found is None:
+                reps.setdefault(self.mesh_of[w], []).append((count, values))
+                found, count = (count, 1.0), count + 1
+            block_of[w], scale[w] = found
+        self.block_of, self.scale_np = block_of, scale
+        self.first_world = np.array([int(np.flatnonzero(block_of == b)[0]) for b in range(count)])
+
+
+class WorldBlocks(WorldGroups):
     """``P^-1 = Q blockdiag(s_w A_b(w)^-1) Q^T``: :class:`WarpedFactor`'s preconditioner with one
     dense inverse per world (or per group of proportional worlds) on the device.
 
@@ -76,19 +155,12 @@ class WorldBlocks(WarpedFrames):
             raise ValueError(f"WorldBlocks: precision must be 'float64' or 'float32', got {precision!r}")
         m = operator.model
         d = m.device
-        super().__init__(operator, refresh_ratio, refresh_floor)
-        self.columns = int(columns)
-        self.share, self.share_tolerance = bool(share), float(share_tolerance)
+        super().__init__(operator, columns, refresh_ratio, refresh_floor, share, share_tolerance)
         tiled_from = TILED_FROM if tiled_from is None else tiled_from
         if int(tiled_from) < 1:
             raise ValueError(f"WorldBlocks: tiled_from must be at least 1, got {tiled_from!r}")
         self.tiled_from = int(tiled_from)
         self.dtype = wp.float64 if precision == "float64" else wp.float32
-        if operator.elastic.kinds != ["corotational"]:
-            quad = next(b for b in m.bodies if b.element != "corotational")
-            raise SceneError(f"WorldBlocks: body '{quad.name}' of world {quad.world} has {quad.element} elements; the "
-                             "per-world blocks preconditioner takes linear tetrahedra only so far: use "
-                             "preconditioner='host' or 'dense', or solver='direct'")
         n = m.num_nodes
         # the flat layout: world w's 3 n_w DOFs padded to a multiple of S * UNROLL rows (and of
         # WIDTH, and of the tiles' rows)
@@ -112,48 +184,14 @@ class WorldBlocks(WarpedFrames):
         self.size = wp.array(self.size_np.astype(np.int32), dtype=wp.int32, device=d)
         self.u = wp.zeros((self.rows, self.columns), dtype=self.dtype, device=d)
         self.partials = wp.zeros((segments, self.columns, self.rows), dtype=self.dtype, device=d)
-        # each world's mesh (its elements' local node ids) and free DOFs: worlds of one mesh share
-        # the map from element block entries to their dense matrix's entries
-        self.local_free, self.mesh_of, self._entries = [], [], {}
-        estarts = m.world_elem_start
-        for w in range(m.num_worlds):
-            n0, n1 = int(starts[w]), int(starts[w + 1])
-            local = np.ascontiguousarray(m.tets_np[estarts[w]:estarts[w + 1]] - n0)
-            mask = np.ascontiguousarray(m.mask_np[n0:n1])
-            self.local_free.append(np.flatnonzero(mask.ravel() > 0))
-            key = (n1 - n0, hashlib.sha1(local.tobytes() + mask.tobytes()).hexdigest())
-            if key not in self._entries:
-                self._entries[key] = _dense_entries(local, n1 - n0)
-            self.mesh_of.append(key)
-        self.block_of = self.scale_np = None  # decided at the first factorization
+        # worlds of one mesh share the map from element block entries to their dense matrix's entries
+        self._entries = {key: _dense_entries(local, nodes) for key, (local, nodes) in self.meshes.items()}
         self.inverse = self._wide = self.scale = self.block_row = None
-        # the CG scalars of the solver served (:meth:`watch`); until then none reads as converged
-        self._done = wp.zeros((self.columns, m.num_worlds, NUM_SCALARS), dtype=wp.float64, device=d)
-
-    def watch(self, scal: wp.array) -> None:
-        """The CG scalars ``(columns, worlds, slots)`` of the solver it serves: a world whose columns
-        are all done skips its product."""
-        self._done = scal
 
     @property
     def memory_bytes(self) -> int:
         """Device memory of the dense inverses (0 before the first factorization)."""
         return 0 if self.inverse is None else self.inverse.capacity
-
-    @property
-    def blocks(self) -> int:
-        """Number of distinct dense inverses."""
-        return 0 if self.block_of is None else int(self.block_of.max()) + 1
-
-    def _values(self, blocks: wp.array, w: int) -> np.ndarray:
-        """World ``w``'s system as numbers that fix it: its element blocks (scaled) and, when the
-        system has mass, its nodes' masses (scaled)."""
-        m, op = self.op.model, self.op
-        e0, e1 = int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])
-        values = op.stiffness_scale * blocks[16 * e0:16 * e1].numpy().ravel()
-        if op.mass_scale != 0.0:
-            values = np.concatenate([values, op.mass_scale * m.mass_np[m.world_nodes(w)]])
-        return values
 
     def _dense(self, values: np.ndarray, w: int) -> np.ndarray:
         """World ``w``'s block of ``A`` over its free DOFs, dense ``(f_w, f_w)``, from :meth:`_values`."""
@@ -164,27 +202,6 @@ class WorldBlocks(WarpedFrames):
             dense[np.diag_indices(n)] += np.repeat(values[len(entries):], 3)
         lf = self.local_free[w]
         return dense[np.ix_(lf, lf)]
-
-    def _group(self, blocks: wp.array) -> None:
-        """Which worlds share a block: the same mesh and supports, proportional values."""
-        m = self.op.model
-        block_of, scale = np.zeros(m.num_worlds, dtype=np.int64), np.ones(m.num_worlds)
-        reps: dict[tuple, list[tuple[int, np.ndarray]]] = {}  # mesh -> [(block, its first world's values)]
-        count = 0
-        for w in range(m.num_worlds):
-            values = self._values(blocks, w)
-            found = None
-            for b, ref in reps.get(self.mesh_of[w], []) if self.share else []:
-                s = float(values @ ref) / max(float(ref @ ref), np.finfo(float).tiny)
-                if s > 0 and np.abs(values - s * ref).max() <= self.share_tolerance * np.abs(values).max():
-                    found = b, s
-                    break
-            if found is None:
-                reps.setdefault(self.mesh_of[w], []).append((count, values))
-                found, count = (count, 1.0), count + 1
-            block_of[w], scale[w] = found
-        self.block_of, self.scale_np = block_of, scale
-        self.first_world = np.array([int(np.flatnonzero(block_of == b)[0]) for b in range(count)])
 
     def _allocate(self) -> None:
         m, d = self.op.model, self.op.model.device

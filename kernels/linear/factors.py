@@ -1,0 +1,83 @@
+"""Kernel of the sparse factor preconditioner world by world: one level of a triangular solve.
+
+Each world's free DOFs have a sparse Cholesky factor (shared by worlds equal up to a factor),
+and its two triangular solves are cut into levels of rows that depend only on rows of earlier
+levels (``warpsoft/linear/supernodal.py``). One launch per level runs every world's rows of
+that level, a thread per row: task ``(row, e0, e1, e2)`` writes
+``out[row, c] = sum_e val[e] inp[base + col[e], c]`` over ``e0 <= e < e1``, plus the same sum
+over ``e1 <= e < e2`` read from ``out`` (rows solved at earlier levels), for each column ``c``;
+``base`` is the first row of the task's world (the entries are numbered within a world, so
+worlds that share a factor share its entries). The operands are flat ``(3 nodes, k)`` arrays in
+the model's DOF order. A world whose columns have all converged (``scal[c, w, DONE]``) skips
+its rows: its result is no longer read.
+"""
+
+import warp as wp
+
+from .cg import DONE
+
+_kernels = {}
+
+
+def rotate_in_scaled(dtype):
+    """``rotate_in(r, q_rot, mask, node_world, inv_scale, u)`` over ``(k, n)``:
+    ``u[3 i + a, c] = (inv_scale[w] mask_i Q_i^T r[c, i])_a`` in precision ``dtype`` (world ``w``'s system
+    is ``s_w`` times its factor's: ``(s_w A)^-1 = A^-1 / s_w``)."""
+    key = ("rotate_in", dtype)
+    if key in _kernels:
+        return _kernels[key]
+
+    @wp.kernel(module="unique")
+    def factor_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
+                         mask: wp.array(dtype=wp.vec3d), node_world: wp.array(dtype=wp.int32),
+                         inv_scale: wp.array(dtype=dtype), u: wp.array2d(dtype=dtype)):
+        c, i = wp.tid()
+        v = wp.float64(inv_scale[node_world[i]]) * wp.cw_mul(mask[i], wp.transpose(q_rot[i]) * r[c, i])
+        for a in range(3):
+            u[3 * i + a, c] = dtype(v[a])
+
+    _kernels[key] = factor_rotate_in
+    return factor_rotate_in
+
+
+def level_kernel(columns: int, dtype):
+    """``factor_level(tasks, first, col, val, node_world, world_row, scal, inp, out)`` for ``k =
+    columns`` right-hand sides in precision ``dtype`` (compile-time constants, hence cached per
+    key), a thread per task, over a level's tasks, which start at ``tasks[first]``."""
+    key = (columns, dtype)
+    if key in _kernels:
+        return _kernels[key]
+    K = columns
+    sums = wp.types.vector(length=K, dtype=dtype)
+
+    @wp.kernel(module="unique")
+    def factor_level(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=wp.int32),
+                     val: wp.array(dtype=dtype), node_world: wp.array(dtype=wp.int32),
+                     world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
+                     inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype)):
+        task = tasks[first + wp.tid()]
+        row = task[0]
+        w = node_world[row // 3]
+        running = wp.int32(0)
+        for c in range(K):
+            if scal[c, w, DONE] == wp.float64(0.0):
+                running = 1
+        if running == 0:
+            return  # every column of the world converged
+        base = world_row[w]
+        acc = sums()
+        for e in range(task[1], task[2]):  # the diagonal block's inverse on the input
+            v = val[e]
+            j = base + col[e]
+            for c in range(K):
+                acc[c] = acc[c] + v * inp[j, c]
+        for e in range(task[2], task[3]):  # the rows solved at earlier levels
+            v = val[e]
+            j = base + col[e]
+            for c in range(K):
+                acc[c] = acc[c] + v * out[j, c]
+        for c in range(K):
+            out[row, c] = acc[c]
+
+    _kernels[key] = factor_level
+    return factor_level

@@ -1,0 +1,135 @@
+"""The warped preconditioner world by world with sparse factors (``preconditioner="factors"``):
+CHOLMOD's factor of each world, its triangular solves run as levels on the device."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import warp as wp
+from warpsoft.kernels.linear.cg import DONE, NUM_SCALARS
+
+import warpsoft as ws
+from warpsoft.linear import WarpedFactor, WorldFactors
+from warpsoft.linear.assembly import CholmodFactor
+from warpsoft.linear.supernodal import Supernodal
+
+from .test_blocks import beam, four_designs
+
+
+def bent(scenes):
+    """The designs as one model, three steps in (the bodies bent, their rotations no longer I)."""
+    sim = ws.Simulator(ws.finalize(scenes), solver="direct")
+    for _ in range(3):
+        sim.step()
+    return sim
+
+
+def test_the_level_programs_solve_with_the_factor_cholmod_made():
+    """CHOLMOD's factor read out is the permuted system's (``A[order][:, order] = L L^T``); its
+    supernodes' forward and backward programs, run level by level, solve ``A x = b`` to
+    round-off; and every row of a level reads only rows of earlier levels."""
+    sim = bent([beam(cells=24)])
+    assembly = sim.solver.assembly
+    values = assembly.values()
+    A = assembly.matrix(values)
+    L, order = CholmodFactor(assembly).lower(values)
+    assert np.abs((A[order][:, order] - L @ L.T).toarray()).max() < 1e-12 * np.abs(A).max()
+    analysis = Supernodal(L)
+    forward, backward = analysis.programs(L)
+    assert len(analysis.first) < assembly.size  # columns were merged into supernodes
+    assert forward.levels == analysis.levels[0] and backward.levels == analysis.levels[1]
+    for program in (forward, backward):
+        level_of_row = np.empty(assembly.size, dtype=np.int64)
+        level_of_row[program.row] = program.level
+        for t in range(len(program.row)):
+            s0, s1, s2 = program.start[t]
+            assert np.all(level_of_row[program.col[s1:s2]] < program.level[t])  # solved before
+    b = np.random.default_rng(3).standard_normal((assembly.size, 2))
+    x = np.empty_like(b)
+    x[order] = backward.run(forward.run(b[order]))
+    assert np.abs(A @ x - b).max() < 1e-10 * np.abs(b).max()
+    L.data[0] *= 2.0  # new values, same pattern: accepted
+    analysis.programs(L)
+    with pytest.raises(ValueError, match="pattern changed"):
+        analysis.programs(sp.csc_matrix(sp.tril(L.toarray() != 0, format="csc") * 1.0 + sp.eye(L.shape[0])))
+
+
+def test_factors_apply_each_worlds_inverse_on_turned_bodies():
+    """Refreshed at a bent state, the factors apply the same ``Q A_f^-1 Q^T`` as the whole model's
+    host factor (block diagonal), on every column: to round-off in float64, to float32's precision."""
+    sim = bent(four_designs())
+    r = wp.array(np.random.default_rng(7).standard_normal((3, sim.model.num_nodes, 3)), dtype=wp.vec3d)
+    host = WarpedFactor(sim.operator, 3, "host")
+    host.prepare()
+    want = wp.zeros_like(r)
+    host.apply(r, want)
+    want = want.numpy()
+    for precision, tol in (("float64", 1e-10), ("float32", 1e-5)):
+        pre = WorldFactors(sim.operator, 3, precision, share=False)
+        pre.prepare()
+        assert pre.blocks == 4 and pre.refreshes == 1 and min(pre.levels) > 1
+        for k in (3, 1):  # also fewer columns than it serves
+            z = wp.zeros((k, sim.model.num_nodes), dtype=wp.vec3d)
+            pre.apply(r[:k], z)
+            assert np.abs(z.numpy() - want[:k]).max() < tol * np.abs(want).max(), (precision, k)
+
+
+def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it():
+    """At rest the 1 and 3 MPa beams share a factor, the second's inverse scaled by 1/3; the
+    product equals the host factor's. A world whose columns all converged is not touched."""
+    sim = ws.Simulator(ws.finalize([beam(), beam(3e6), beam(cells=16)]), solver="direct")
+    sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
+    pre = WorldFactors(sim.operator, 2, "float64")
+    scal = wp.zeros((2, 3, NUM_SCALARS), dtype=wp.float64)
+    pre.watch(scal)
+    pre.prepare()
+    assert list(pre.block_of) == [0, 0, 1] and abs(pre.scale_np[1] - 3.0) < 1e-9
+    host = WarpedFactor(sim.operator, 2, "host")
+    host.prepare()
+    n = sim.model.num_nodes
+    r = wp.array(np.random.default_rng(1).standard_normal((2, n, 3)), dtype=wp.vec3d)
+    fresh, want = (wp.zeros((2, n), dtype=wp.vec3d) for _ in range(2))
+    pre.apply(r, fresh)
+    host.apply(r, want)
+    assert np.abs(fresh.numpy() - want.numpy()).max() < 1e-10 * np.abs(want.numpy()).max()
+    s = np.zeros((2, 3, NUM_SCALARS))
+    s[:, 0, DONE] = 1.0
+    scal.assign(s)
+    pre.x.zero_()  # world 0's solved rows: only a fresh solve would fill them again
+    z = wp.zeros((2, n), dtype=wp.vec3d)
+    pre.apply(r, z)
+    skipped = sim.model.node_world_np == 0
+    assert np.all(z.numpy()[:, skipped] == 0.0)
+    assert np.array_equal(z.numpy()[:, ~skipped], fresh.numpy()[:, ~skipped])
+
+
+def test_each_world_steps_as_alone_and_as_with_dense_blocks():
+    """Four designs stepped with the factors: each world as it steps alone (its positions and
+    its CG iterations), and as with the dense inverses per world (the same preconditioner,
+    another way to apply it: one iteration apart at most)."""
+    scenes = four_designs()
+    runs = {}
+    for pre in ("factors", "blocks"):
+        sim = ws.Simulator(ws.finalize(scenes), solver="pcg", preconditioner=pre, precision="float64",
+                           tolerance=1e-10)
+        runs[pre] = (sim, [sim.step() for _ in range(3)])
+    sim, together = runs["factors"]
+    assert isinstance(sim.solver.precond, WorldFactors)
+    for w, scene in enumerate(scenes):
+        alone = ws.Simulator(scene, solver="pcg", preconditioner="factors", precision="float64", tolerance=1e-10)
+        history = [alone.step() for _ in range(3)]
+        q = alone.positions()
+        moved = np.abs(q - sim.model.rest_np[sim.model.world_nodes(w)]).max()
+        assert moved > 1e-4
+        assert np.abs(sim.positions(w) - q).max() < 1e-8 * moved
+        assert [s.worlds[w].cg_iterations for s in together] == [s.cg_iterations for s in history]
+        dense = [s.worlds[w].cg_iterations for s in runs["blocks"][1]]
+        assert np.abs(np.subtract(dense, [s.worlds[w].cg_iterations for s in together])).max() <= 1
+        assert np.abs(runs["blocks"][0].positions(w) - q).max() < 1e-8 * moved
+
+
+def test_bad_input_is_named():
+    sim = bent([beam()])
+    with pytest.raises(ValueError, match="WorldFactors: precision must be 'float64' or 'float32', got 'half'"):
+        WorldFactors(sim.operator, 1, "half")
+    with pytest.raises(ValueError, match="auto, host, dense, blocks, factors, got 'factor'"):
+        ws.Simulator(beam(), solver="pcg", preconditioner="factor")

@@ -1,0 +1,176 @@
+"""The warped preconditioner world by world with sparse factors (``preconditioner="factors"``).
+
+:class:`~warpsoft.linear.blocks.WorldBlocks` keeps a dense inverse per world: ``N_w^2`` numbers,
+read whole at every CG iteration, and inverted on the host by LAPACK (1.6 s for a Diamond on the
+2-core VM). That is what a batch of a few meshes can afford (worlds of one mesh share it), not
+one of many different meshes. Here each world (or group of proportional worlds, as there) keeps
+the sparse Cholesky factor of its rest system instead, CHOLMOD's: 0.1-0.4 M numbers for the
+Diamond's 3048-5157 free DOFs, against 9-27 M. Its two triangular solves run on the device as
+levels of independent rows (:mod:`warpsoft.linear.supernodal`): one launch per level, every
+world's rows of that level in it, 18-36 levels each way for the Diamond.
+
+So ``P^-1 = Q blockdiag(s_w^-1 P_b^T L_b^-T L_b^-1 P_b) Q^T``: the same preconditioner as the
+dense inverse (the rest system's exact inverse, turned by the node rotations), at a fraction of
+the bytes, in more launches: for one robot the dense inverse stays the better (launch-bound),
+for many the factors (bandwidth-bound).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import warp as wp
+
+from warpsoft.kernels.linear import factors as kernels
+from warpsoft.kernels.linear import warped as rotations
+
+from ..errors import SceneError
+from ..launch import launch
+from .assembly import CholmodFactor, Pattern
+from .blocks import WorldGroups, _dense_entries
+from .operator import SystemOperator
+from .supernodal import Supernodal
+
+
+class WorldFactors(WorldGroups):
+    """Args:
+        operator: the system (rotations, scales, model).
+        columns: right-hand sides ``k`` of the solves it serves.
+        precision: "float32" or "float64", of the factors' entries and the solves (the CG runs in float64).
+        refresh_ratio, refresh_floor: when to refactorize, as :class:`~warpsoft.linear.warped.WarpedFactor`'s.
+        share, share_tolerance: which worlds share a factor, as
+            :class:`~warpsoft.linear.blocks.WorldBlocks`'.
+
+    Attributes: ``blocks`` (distinct factors), ``block_of`` ``(worlds,)``, ``levels`` (the forward
+    and backward solves' launches), ``entries`` (the programs' numbers, all blocks), ``refreshes``,
+    ``memory_bytes``.
+    """
+
+    capturable = True
+
+    def __init__(self, operator: SystemOperator, columns: int, precision: str = "float32",
+                 refresh_ratio: float = 2.0, refresh_floor: int = 40, share: bool = True,
+                 share_tolerance: float = 1e-10):
+        if precision not in ("float64", "float32"):
+            raise ValueError(f"WorldFactors: precision must be 'float64' or 'float32', got {precision!r}")
+        super().__init__(operator, columns, refresh_ratio, refresh_floor, share, share_tolerance)
+        m, d = operator.model, operator.model.device
+        self.dtype = wp.float64 if precision == "float64" else wp.float32
+        rows = 3 * m.num_nodes
+        # the solves' operands, flat (3 nodes, k) in the model's DOF order: input, forward, backward
+        self.u, self.y, self.x = (wp.zeros((rows, self.columns), dtype=self.dtype, device=d) for _ in range(3))
+        self.world_row = wp.array((3 * m.world_node_start[:-1]).astype(np.int32), dtype=wp.int32, device=d)
+        self.patterns = {}  # mesh -> the lower triangle of its system over its free DOFs
+        for key, (local, nodes) in self.meshes.items():
+            flat = _dense_entries(local, nodes)
+            free = np.zeros(3 * nodes, dtype=bool)
+            free[self.local_free[self.mesh_of.index(key)]] = True
+            self.patterns[key] = Pattern(flat // (3 * nodes), flat % (3 * nodes), free)
+        self.factors = self.analyses = self.orders = None  # per block, made at the first refresh
+        self.solves = None  # per direction: (tasks, col, val, [(first, count) per level])
+        self.inv_scale = None
+
+    @property
+    def levels(self) -> tuple[int, int]:
+        """Launches of the forward and backward solves (0 before the first factorization)."""
+        return (0, 0) if self.solves is None else tuple(len(s[3]) for s in self.solves)
+
+    @property
+    def entries(self) -> int:
+        """Numbers of the forward and backward programs of every block."""
+        return 0 if self.solves is None else sum(s[2].shape[0] for s in self.solves)
+
+    @property
+    def memory_bytes(self) -> int:
+        """Device memory of the programs (entries and tasks) and the operands."""
+        if self.solves is None:
+            return 0
+        return sum(a.capacity for s in self.solves for a in s[:3]) + 3 * self.u.capacity
+
+    def _system(self, blocks: wp.array, w: int) -> np.ndarray:
+        """World ``w``'s lower triangle (its pattern's values) at the element blocks ``blocks``."""
+        values = self._values(blocks, w)
+        local, nodes = self.meshes[self.mesh_of[w]]
+        count = 144 * len(local)
+        mass = np.repeat(values[count:], 3) if len(values) > count else None
+        return self.patterns[self.mesh_of[w]].lower_values(values[:count], mass)
+
+    def refresh(self) -> None:
+        """Factorize each block at the current rotations (its first world's state) with CHOLMOD,
+        turn the factors into level programs, and take the rotations as the new frame."""
+        m, d = self.op.model, self.op.model.device
+        blocks = wp.zeros(16 * m.num_elements, dtype=wp.mat33d, device=d)  # made here, freed after
+        self.op.elastic.blocks(self.op.rot, blocks)
+        first = self.block_of is None
+        if first:
+            self._group(blocks)
+            self.factors = [CholmodFactor(self.patterns[self.mesh_of[w]]) for w in self.first_world]
+            self.analyses, self.orders = [], []
+        programs = []
+        for b, w in enumerate(self.first_world):
+            try:
+                L, order = self.factors[b].lower(self._system(blocks, w))
+            except ArithmeticError as e:
+                raise SceneError(f"WorldFactors: world {w} (scene '{m.scenes[w].name}'): its system is not "
+                                 f"positive definite ({e}); is the body held?") from e
+            if first:
+                self.analyses.append(Supernodal(L))
+                self.orders.append(order)
+            elif not np.array_equal(order, self.orders[b]):
+                raise RuntimeError(f"WorldFactors: block {b}'s ordering changed between factorizations")
+            programs.append(self.analyses[b].programs(L))
+        self._lay_out(programs)
+        self.take_frame()
+
+    def _lay_out(self, programs: list) -> None:
+        """The programs of every block on the device: each block's entries once (their columns as
+        DOFs of its world), each world's tasks (rows as the model's DOFs), sorted by level. At a
+        later refresh only the entries' values change, in place (a captured graph holds them)."""
+        m, d = self.op.model, self.op.model.device
+        npd = np.float64 if self.dtype == wp.float64 else np.float32
+        # each factor place's DOF in its world's own numbering
+        dof = [self.patterns[self.mesh_of[w]].free[self.orders[b]] for b, w in enumerate(self.first_world)]
+        if self.solves is not None:
+            for direction, solve in enumerate(self.solves):
+                solve[2].assign(np.concatenate([p[direction].val for p in programs]).astype(npd))
+            return
+        self.inv_scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
+        solves = []
+        for direction in range(2):
+            progs = [p[direction] for p in programs]
+            offset = np.concatenate([[0], np.cumsum([len(p.val) for p in progs])])
+            col = np.concatenate([dof[b][p.col] for b, p in enumerate(progs)])
+            val = np.concatenate([p.val for p in progs]).astype(npd)
+            tasks, levels = [], []
+            for w in range(m.num_worlds):
+                b = int(self.block_of[w])
+                p = progs[b]
+                tasks.append(np.column_stack([3 * int(m.world_node_start[w]) + dof[b][p.row], p.start + offset[b]]))
+                levels.append(p.level)
+            tasks, levels = np.concatenate(tasks), np.concatenate(levels)
+            order = np.argsort(levels, kind="stable")  # by level, then world, then row
+            counts = np.bincount(levels, minlength=int(levels.max()) + 1)
+            firsts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+            if tasks.max() >= 2 ** 31:
+                raise ValueError(f"WorldFactors: {tasks.max()} entries pass the 2^31 a Warp index holds; "
+                                 "step fewer designs at a time")
+            solves.append((wp.array(tasks[order].astype(np.int32), dtype=wp.vec4i, device=d),
+                           wp.array(col.astype(np.int32), dtype=wp.int32, device=d),
+                           wp.array(val, dtype=self.dtype, device=d),
+                           [(int(f), int(c)) for f, c in zip(firsts, counts, strict=True) if c]))
+        self.solves = solves
+
+    def apply(self, r: wp.array, z: wp.array) -> None:
+        """``z = Q blockdiag(s_w^-1 A_b^-1) Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns``;
+        fixed DOFs 0."""
+        m, d = self.op.model, self.op.model.device
+        k = r.shape[0]
+        launch(kernels.rotate_in_scaled(self.dtype), r.shape,
+               inputs=[r, self.q_rot, m.mask, m.node_world, self.inv_scale], outputs=[self.u], device=d)
+        level = kernels.level_kernel(k, self.dtype)
+        for (tasks, col, val, levels), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x), strict=True):
+            for first, count in levels:
+                launch(level, count, inputs=[tasks, first, col, val, m.node_world, self.world_row, self._done, inp],
+                       outputs=[out], device=d)
+        _, rotate_out = rotations.flat_rotations(self.dtype)
+        launch(rotate_out, r.shape, inputs=[self.x, self.q_rot, m.mask], outputs=[z], device=d)
+
