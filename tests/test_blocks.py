@@ -7,7 +7,7 @@ import warp as wp
 from warpsoft.kernels.linear.cg import DONE, NUM_SCALARS
 
 import warpsoft as ws
-from warpsoft.linear import WarpedFactor, WorldBlocks, blocks
+from warpsoft.linear import WarpedFactor, WorldBlocks, WorldFactors, blocks
 
 
 def beam(young_modulus=1e6, poisson_ratio=0.45, cells=20, static=True):
@@ -26,9 +26,11 @@ def four_designs():
     return [beam(), beam(3e6), beam(1e6, 0.3), beam(cells=16)]
 
 
-def test_blocks_apply_each_worlds_inverse_on_turned_bodies():
-    """Refreshed at a bent state, the blocks apply the same ``Q A_f^-1 Q^T`` as the whole model's
-    host factor (block diagonal), on every column: to round-off in float64, to float32's precision."""
+@pytest.mark.parametrize("kind", [WorldBlocks, WorldFactors])
+def test_blocks_apply_each_worlds_inverse_on_turned_bodies(kind):
+    """Refreshed at a bent state, the blocks (dense inverses, or sparse factors solved level by
+    level) apply the same ``Q A_f^-1 Q^T`` as the whole model's host factor (block diagonal), on
+    every column: to round-off in float64, to float32's precision."""
     sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
     for _ in range(3):
         sim.step()
@@ -39,9 +41,10 @@ def test_blocks_apply_each_worlds_inverse_on_turned_bodies():
     host.apply(r, want)
     want = want.numpy()
     for precision, tol in (("float64", 1e-9), ("float32", 1e-4)):
-        pre = WorldBlocks(sim.operator, 3, precision, share=False)
+        pre = kind(sim.operator, 3, precision, share=False)
         pre.prepare()
         assert pre.blocks == 4 and pre.refreshes == 1
+        assert kind is WorldBlocks or min(pre.levels) > 1
         for k in (3, 1):  # also fewer columns than it serves
             z = wp.zeros((k, sim.model.num_nodes), dtype=wp.vec3d)
             pre.apply(r[:k], z)
@@ -64,16 +67,27 @@ def test_proportional_worlds_share_a_block_and_step_as_alone(monkeypatch, tiled_
     assert pre.blocks == 3 and list(pre.block_of) == [0, 0, 1, 2]
     assert abs(pre.scale_np[1] - 3.0) < 1e-9
     assert pre.tiled_worlds == (2 if tiled_from == 2 else 0)
+    # the tiled product sums in another order than the streamed one alone: one iteration either way
+    steps_as_alone(scenes, sim, together, "blocks", 0 if tiled_from == 8 else 1)
+
+
+def steps_as_alone(scenes: list, sim: ws.Simulator, together: list, preconditioner: str, off: int) -> list:
+    """Each world of ``sim`` (its ``together`` stats) against its scene stepped alone with the same
+    preconditioner: the same positions (to 1e-8 of its motion), iterations at most ``off`` apart.
+    Returns the scenes' positions alone."""
+    positions = []
     for w, scene in enumerate(scenes):
-        alone = ws.Simulator(scene, solver="pcg", preconditioner="blocks", precision="float64", tolerance=1e-10)
-        history = [alone.step() for _ in range(3)]
+        alone = ws.Simulator(scene, solver="pcg", preconditioner=preconditioner, precision="float64",
+                             tolerance=1e-10)
+        history = [alone.step() for _ in together]
         q = alone.positions()
         moved = np.abs(q - sim.model.rest_np[sim.model.world_nodes(w)]).max()
         assert moved > 1e-4
         assert np.abs(sim.positions(w) - q).max() < 1e-8 * moved
         its = np.array([s.worlds[w].cg_iterations for s in together]) - [s.cg_iterations for s in history]
-        # the tiled product sums in another order than the streamed one alone: one iteration either way
-        assert np.abs(its).max() <= (0 if tiled_from == 8 else 1)
+        assert np.abs(its).max() <= off, (w, its)
+        positions.append(q)
+    return positions
 
 
 def test_a_shared_block_serves_its_worlds_and_converged_ones_skip_it():

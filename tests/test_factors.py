@@ -12,7 +12,7 @@ from warpsoft.linear import WarpedFactor, WorldFactors
 from warpsoft.linear.assembly import CholmodFactor
 from warpsoft.linear.supernodal import Supernodal
 
-from .test_blocks import beam, four_designs
+from .test_blocks import beam, four_designs, steps_as_alone
 
 
 def bent(scenes):
@@ -51,26 +51,6 @@ def test_the_level_programs_solve_with_the_factor_cholmod_made():
     analysis.programs(L)
     with pytest.raises(ValueError, match="pattern changed"):
         analysis.programs(sp.csc_matrix(sp.tril(L.toarray() != 0, format="csc") * 1.0 + sp.eye(L.shape[0])))
-
-
-def test_factors_apply_each_worlds_inverse_on_turned_bodies():
-    """Refreshed at a bent state, the factors apply the same ``Q A_f^-1 Q^T`` as the whole model's
-    host factor (block diagonal), on every column: to round-off in float64, to float32's precision."""
-    sim = bent(four_designs())
-    r = wp.array(np.random.default_rng(7).standard_normal((3, sim.model.num_nodes, 3)), dtype=wp.vec3d)
-    host = WarpedFactor(sim.operator, 3, "host")
-    host.prepare()
-    want = wp.zeros_like(r)
-    host.apply(r, want)
-    want = want.numpy()
-    for precision, tol in (("float64", 1e-10), ("float32", 1e-5)):
-        pre = WorldFactors(sim.operator, 3, precision, share=False)
-        pre.prepare()
-        assert pre.blocks == 4 and pre.refreshes == 1 and min(pre.levels) > 1
-        for k in (3, 1):  # also fewer columns than it serves
-            z = wp.zeros((k, sim.model.num_nodes), dtype=wp.vec3d)
-            pre.apply(r[:k], z)
-            assert np.abs(z.numpy() - want[:k]).max() < tol * np.abs(want).max(), (precision, k)
 
 
 def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it():
@@ -114,17 +94,13 @@ def test_each_world_steps_as_alone_and_as_with_dense_blocks():
         runs[pre] = (sim, [sim.step() for _ in range(3)])
     sim, together = runs["factors"]
     assert isinstance(sim.solver.precond, WorldFactors)
-    for w, scene in enumerate(scenes):
-        alone = ws.Simulator(scene, solver="pcg", preconditioner="factors", precision="float64", tolerance=1e-10)
-        history = [alone.step() for _ in range(3)]
-        q = alone.positions()
+    alone = steps_as_alone(scenes, sim, together, "factors", 0)
+    dense_sim, dense = runs["blocks"]
+    for w, q in enumerate(alone):
+        its = np.subtract([s.worlds[w].cg_iterations for s in dense], [s.worlds[w].cg_iterations for s in together])
+        assert np.abs(its).max() <= 1
         moved = np.abs(q - sim.model.rest_np[sim.model.world_nodes(w)]).max()
-        assert moved > 1e-4
-        assert np.abs(sim.positions(w) - q).max() < 1e-8 * moved
-        assert [s.worlds[w].cg_iterations for s in together] == [s.cg_iterations for s in history]
-        dense = [s.worlds[w].cg_iterations for s in runs["blocks"][1]]
-        assert np.abs(np.subtract(dense, [s.worlds[w].cg_iterations for s in together])).max() <= 1
-        assert np.abs(runs["blocks"][0].positions(w) - q).max() < 1e-8 * moved
+        assert np.abs(dense_sim.positions(w) - q).max() < 1e-8 * moved
 
 
 def test_bad_input_is_named():

@@ -91,8 +91,10 @@ def main(argv=None) -> int:
     ap.add_argument("--alone", type=int, default=0, help="also step the first K designs one at a time")
     ap.add_argument("--solver", default="auto")
     ap.add_argument("--preconditioner", default="auto", help="pcg's: auto, blocks, factors, dense, host")
-    ap.add_argument("--share-tolerance", type=float, default=1e-10, help="blocks, factors: when worlds of one mesh share")
-    ap.add_argument("--precision", default="float32", choices=["float32", "float64"], help="pcg's dense inverses or factors")
+    ap.add_argument("--share-tolerance", type=float, default=1e-10,
+                    help="blocks, factors: when worlds of one mesh share")
+    ap.add_argument("--precision", default="float32", choices=["float32", "float64"],
+                    help="pcg's dense inverses or factors")
     ap.add_argument("--column-cg", action="store_true", help="pcg: each column its own CG (block_cg=False)")
     ap.add_argument("--tolerance", type=float, default=1e-6, help="CG relative residual")
     ap.add_argument("--out", default="out/batch")
