@@ -89,8 +89,7 @@ class WorldFactors(WorldGroups):
     def _system(self, blocks: wp.array, w: int) -> np.ndarray:
         """World ``w``'s lower triangle (its pattern's values) at the element blocks ``blocks``."""
         values = self._values(blocks, w)
-        local, nodes = self.meshes[self.mesh_of[w]]
-        count = 144 * len(local)
+        count = 144 * len(self.meshes[self.mesh_of[w]][0])  # 16 blocks of 9 numbers per element
         mass = np.repeat(values[count:], 3) if len(values) > count else None
         return self.patterns[self.mesh_of[w]].lower_values(values[:count], mass)
 

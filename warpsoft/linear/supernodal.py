@@ -102,18 +102,22 @@ class Supernodal:
         for s in range(ns - 1, -1, -1):  # parents come after children: a level one below the parent's
             if sparent[s] >= 0:
                 self.backward_level[s] = self.backward_level[sparent[s]] + 1
-        # the rows left of each supernode (its G: the entries of its rows in earlier columns), by rows
-        lower = sp.csc_matrix((np.ones(len(self.indices)), self.indices, self.indptr), shape=(n, n)).tocsr()
-        lower.sort_indices()
-        self.left = []  # per supernode: J (the columns of G) and, per row, the union of G's patterns so far
+        # the rows left of each supernode (its G: the entries of its rows in earlier columns), read
+        # by rows: each entry's place in L's (column-ordered) data, so that G is gathered from it
+        place = sp.csc_matrix((np.arange(1, len(self.indices) + 1), self.indices, self.indptr), shape=(n, n)).tocsr()
+        place.sort_indices()
+        self.left = []  # per supernode: J, the union of G's patterns down its rows, G's places in L and in (w, |J|)
         for a, b in zip(self.first, self.end, strict=True):
-            rows = [lower.indices[lower.indptr[i]:lower.indptr[i + 1]] for i in range(a, b)]
-            rows = [r[r < a] for r in rows]
-            J = np.unique(np.concatenate(rows)) if rows else np.zeros(0, dtype=np.int64)
+            lo, hi = place.indptr[a], place.indptr[b]
+            row = np.repeat(np.arange(b - a), np.diff(place.indptr[a:b + 1]))
+            col, src = place.indices[lo:hi], place.data[lo:hi] - 1
+            left = col < a
+            row, col, src = row[left], col[left], src[left]
+            J = np.unique(col)
             seen = np.zeros((b - a, len(J)), dtype=bool)
-            for i, r in enumerate(rows):
-                seen[i, np.searchsorted(J, r)] = True
-            self.left.append((J, np.logical_or.accumulate(seen, axis=0) if len(J) else seen))
+            dest = row * len(J) + np.searchsorted(J, col)
+            seen.flat[dest] = True
+            self.left.append((J, np.logical_or.accumulate(seen, axis=0), src, dest))
 
     @property
     def levels(self) -> tuple[int, int]:
@@ -124,9 +128,8 @@ class Supernodal:
         """The forward and backward programs of ``L`` (its pattern the one analysed)."""
         if not (np.array_equal(L.indptr, self.indptr) and np.array_equal(L.indices, self.indices)):
             raise ValueError("Supernodal: the factor's pattern changed since it was analysed")
-        n, data = self.n, L.data
-        fwd = {"row": [], "level": [], "input": [], "output": []}
-        bwd = {"row": [], "level": [], "input": [], "output": []}
+        data = L.data
+        parts = {"forward": [], "backward": []}  # per supernode: (row, part, col, val) of its entries
         for s, (a, b) in enumerate(zip(self.first, self.end, strict=True)):
             w = b - a
             # the panel of columns a..b-1: the triangle's rows, then the rows R below (shared)
@@ -134,40 +137,43 @@ class Supernodal:
             panel = np.zeros((w + len(R), w))
             for j in range(w):
                 panel[j:, j] = data[self.indptr[a + j]:self.indptr[a + j + 1]]
-            T, LRS = panel[:w], panel[w:]
-            Tinv = sla.solve_triangular(T, np.eye(w), lower=True)
-            J, pattern = self.left[s]
-            if len(J):
-                G = np.asarray(L[a:b][:, J].todense())  # (w, |J|)
-                M = Tinv @ G
-            for i in range(w):
-                fwd["row"].append(a + i)
-                fwd["level"].append(self.forward_level[s])
-                fwd["input"].append((np.arange(a, a + i + 1), Tinv[i, :i + 1]))
-                mine = pattern[i] if len(J) else np.zeros(0, dtype=bool)
-                fwd["output"].append((J[mine], -M[i, mine]) if len(J) else (J, np.zeros(0)))
-                bwd["row"].append(a + i)
-                bwd["level"].append(self.backward_level[s])
-                bwd["input"].append((np.arange(a + i, b), Tinv[i:, i]))
-            if len(R):
-                N = Tinv.T @ LRS.T  # (w, |R|)
-                for i in range(w):
-                    bwd["output"].append((R, -N[i]))
-            else:
-                bwd["output"].extend((R, np.zeros(0)) for _ in range(w))
-        return _program(fwd, n), _program(bwd, n)
+            Tinv = sla.solve_triangular(panel[:w], np.eye(w), lower=True)
+            tri = np.tril_indices(w)  # (i, j), j <= i, by rows
+            up = np.triu_indices(w)  # (i, j), j >= i, by rows
+            J, pattern, src, dest = self.left[s]
+            G = np.zeros((w, len(J)))
+            G.flat[dest] = data[src]
+            M = Tinv @ G
+            mi, mj = np.nonzero(pattern)  # by rows
+            # forward: y_i = (T^-1 b_S)_i - (T^-1 G y_J)_i
+            parts["forward"].append((np.concatenate([a + tri[0], a + mi]),
+                                     np.concatenate([np.zeros(len(tri[0]), dtype=np.int64),
+                                                     np.ones(len(mi), dtype=np.int64)]),
+                                     np.concatenate([a + tri[1], J[mj]]), np.concatenate([Tinv[tri], -M[mi, mj]])))
+            # backward: x_i = (T^-T y_S)_i - (T^-T L_RS^T x_R)_i
+            N = Tinv.T @ panel[w:].T  # (w, |R|)
+            parts["backward"].append((np.concatenate([a + up[0], np.repeat(np.arange(a, b), len(R))]),
+                                      np.concatenate([np.zeros(len(up[0]), dtype=np.int64),
+                                                      np.ones(w * len(R), dtype=np.int64)]),
+                                      np.concatenate([a + up[1], np.tile(R, w)]),
+                                      np.concatenate([Tinv.T[up], -N.ravel()])))
+        forward_row, backward_row = (np.repeat(lev, self.end - self.first) for lev in (self.forward_level,
+                                                                                       self.backward_level))
+        return _program(parts["forward"], forward_row), _program(parts["backward"], backward_row)
 
 
-def _program(parts: dict, n: int) -> Program:
-    """Tasks sorted by level (stable: within a level, by row), their entries laid out in that order."""
-    level = np.asarray(parts["level"], dtype=np.int64)
+def _program(parts: list, level: np.ndarray) -> Program:
+    """The tasks (one per row) sorted by level (stable: within a level, by row), each row's entries
+    (``parts``: per supernode, the ``(row, part, col, val)`` of its entries, part 0 read from the
+    input, 1 from the output) laid out in that order, input first."""
+    n = len(level)
+    row, part, col, val = (np.concatenate([p[k] for p in parts]) for k in range(4))
     order = np.argsort(level, kind="stable")
-    sizes = np.array([[len(parts["input"][t][0]), len(parts["output"][t][0])] for t in order], dtype=np.int64)
-    ends = np.cumsum(sizes.sum(axis=1))
-    start = np.stack([ends - sizes.sum(axis=1), ends - sizes[:, 1], ends], axis=1) if len(order) else \
-        np.zeros((0, 3), dtype=np.int64)
-    col = np.concatenate([np.concatenate([parts["input"][t][0], parts["output"][t][0]]) for t in order]
-                         ) if len(order) else np.zeros(0, dtype=np.int64)
-    val = np.concatenate([np.concatenate([parts["input"][t][1], parts["output"][t][1]]) for t in order]
-                         ) if len(order) else np.zeros(0)
-    return Program(np.asarray(parts["row"], dtype=np.int64)[order], level[order], start, col.astype(np.int64), val)
+    rank = np.empty(n, dtype=np.int64)
+    rank[order] = np.arange(n)
+    key = 2 * rank[row] + part
+    by = np.argsort(key, kind="stable")  # within a (row, part), the columns keep their order
+    count = np.bincount(key, minlength=2 * n).reshape(n, 2)
+    ends = np.cumsum(count.sum(axis=1))
+    start = np.stack([ends - count.sum(axis=1), ends - count[:, 1], ends], axis=1)
+    return Program(order, level[order], start, col[by].astype(np.int64), val[by])
