@@ -7,7 +7,7 @@ import warp as wp
 from warpsoft.kernels.linear.cg import DONE, NUM_SCALARS
 
 import warpsoft as ws
-from warpsoft.linear import PCG, SparseDirect, WarpedFactor
+from warpsoft.linear import PCG, SparseDirect, WarpedFactor, assembly
 from warpsoft.linear.assembly import CholmodFactor
 
 RUBBER = ws.Material(1e6, 0.45, 1000.0)
@@ -80,10 +80,11 @@ def test_cholmod_and_superlu_factorizations_agree():
     assert np.all(solutions[0].reshape(3, -1)[:, sim.model.mask_np.ravel() == 0] == 0.0)
 
 
-def test_a_factor_per_world_solves_and_gives_the_compliance_of_the_whole_factor():
+def test_a_factor_per_world_solves_and_gives_the_compliance_of_the_whole_factor(monkeypatch):
     """Three beams (the middle one stiffer) as worlds, bent: one CHOLMOD factor per world solves
     as the factor of the whole block-diagonal A does, and its forward solves give the same
-    B^T A^-1 B for columns that each lie in one world."""
+    B^T A^-1 B for columns that each lie in one world; so does ``gram``, from its dense block of
+    Z's rows and from the sparse product it falls back on."""
     scenes = [bent_beam(), bent_beam(), bent_beam()]
     scenes[1].bodies[0].material = ws.Material(3e6, 0.45, 1000.0)
     sim = ws.Simulator(ws.finalize(scenes, "cpu"), solver="direct")
@@ -112,6 +113,11 @@ def test_a_factor_per_world_solves_and_gives_the_compliance_of_the_whole_factor(
     assert np.abs(zz - ref).max() < 1e-10 * np.abs(ref).max()
     assert np.abs(zz - B.T @ whole.solve(B)).max() < 1e-10 * np.abs(ref).max()
     assert np.all(zz[np.ix_([0, 3], [1, 2, 4, 5])] == 0.0)  # worlds do not couple
+    for limit in (assembly.GRAM_DENSE_ENTRIES, 0):  # the dense block, then the sparse product
+        monkeypatch.setattr(assembly, "GRAM_DENSE_ENTRIES", limit)
+        for factor in (direct.factor, whole):
+            gram = factor.gram(dof, column, value, 6)
+            assert gram.shape == (6, 6) and np.abs(gram - ref).max() < 1e-10 * np.abs(ref).max()
 
 
 def test_a_wide_right_hand_side_is_solved_in_runs_of_columns(monkeypatch):

@@ -104,8 +104,7 @@ class SparseDirect:
         W.fill(0.0)
         if not len(used):
             return
-        z = self.factor.forward(dof[keep], column, h_coef[keep], len(used))
-        zz = scale * (z.T @ z).toarray()  # every pair of Z's columns (a few dozen: dense is cheap)
+        zz = scale * self.factor.gram(dof[keep], column, h_coef[keep], len(used))  # every pair of Z's columns
         place = np.full(rows.num_rows, -1)
         place[used] = np.arange(len(used))
         force_rows = rows.world_force_rows.numpy()
