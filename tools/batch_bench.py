@@ -24,16 +24,26 @@ import warp as wp
 
 import warpsoft as ws
 from warpsoft.io.runner import build_scene
+from warpsoft.io.sweep import premesh
 
 ROOT = Path(__file__).resolve().parents[1]
 GRAPHS = ("device_step", "newton_step", "line_search", "device_before_qp", "newton_before_qp", "device_after_qp")
 LEG_RADII = (0.009, 0.010, 0.011, 0.012, 0.013, 0.014, 0.015, 0.016)  # m: one mesh each
 
 
+def leg_radii(meshes: int) -> list[float]:
+    """The leg radii (m) of ``meshes`` different meshes: :data:`LEG_RADII`'s first ones, or past
+    them, ``meshes`` values evenly over the same 9-16 mm (a sweep of distinct meshes)."""
+    if meshes <= len(LEG_RADII):
+        return list(LEG_RADII[:meshes])
+    return [round(float(r), 7) for r in np.linspace(LEG_RADII[0], LEG_RADII[-1], meshes)]
+
+
 def designs(count: int, meshes: int) -> list[dict]:
     """``count`` Diamond designs: leg radius cycling over ``meshes`` values, modulus log-spaced."""
     moduli = np.geomspace(1e5, 3e5, count)
-    return [{"leg_radius": LEG_RADII[k % meshes], "young_modulus": float(moduli[k]),
+    radii = leg_radii(meshes)
+    return [{"leg_radius": radii[k % meshes], "young_modulus": float(moduli[k]),
              "cable_displacements": (0.004, 0.0, 0.002, 0.0), "ramp_time": 0.05} for k in range(count)]
 
 
@@ -61,6 +71,8 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -
         solver.scal.zero_()  # no world done: the product runs for all of them
         parts = {"precond_ms": 1e3 * _median_call(lambda: pre.apply(solver.r, solver.z), sim.model.device),
                  "operator_ms": 1e3 * _median_call(lambda: sim.operator.apply(solver.p, solver.ap), sim.model.device)}
+        if sim.operator.blocks is not None:  # the assembled operator's refresh, at each linearization
+            parts["assemble_ms"] = 1e3 * _median_call(lambda: sim.operator.linearized(), sim.model.device)
     if sim.timing and sim.model.device.is_cuda:  # the graphs' own time (synchronized), the rest is the host's
         parts["graph_ms"] = 1e3 * float(np.median(graphs))
     info = {**parts, "cg_iterations": float(np.median(its)), "world_cg_iterations": float(np.median(world_its)),
@@ -87,7 +99,10 @@ def main(argv=None) -> int:
     ap.add_argument("--sizes", type=int, nargs="*", default=[1, 16, 64])
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--warmup", type=int, default=3)
-    ap.add_argument("--meshes", type=int, default=4, help=f"different meshes, at most {len(LEG_RADII)}")
+    ap.add_argument("--meshes", type=int, default=4,
+                    help=f"different meshes (past {len(LEG_RADII)}: leg radii evenly over 9-16 mm)")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="processes that mesh the designs first into WARPSOFT_MESH_CACHE (set it)")
     ap.add_argument("--alone", type=int, default=0, help="also step the first K designs one at a time")
     ap.add_argument("--solver", default="auto")
     ap.add_argument("--preconditioner", default="auto", help="pcg's: auto, blocks, factors, dense, host")
@@ -96,16 +111,19 @@ def main(argv=None) -> int:
     ap.add_argument("--precision", default="float32", choices=["float32", "float64"],
                     help="pcg's dense inverses or factors")
     ap.add_argument("--column-cg", action="store_true", help="pcg: each column its own CG (block_cg=False)")
+    ap.add_argument("--operator", default="auto", choices=["auto", "matrix_free", "assembled"],
+                    help="how the iterative solvers apply A")
     ap.add_argument("--tolerance", type=float, default=1e-6, help="CG relative residual")
     ap.add_argument("--out", default="out/batch")
     args = ap.parse_args(argv)
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
     t0 = time.perf_counter()
+    premesh(ROOT / "scenes/diamond.py", everything, args.workers)
     scenes = [build_scene(ROOT / "scenes/diamond.py", d) for d in everything]
     print(f"{len(scenes)} designs built in {time.perf_counter() - t0:.1f} s", flush=True)
     rows = []
     options = {"solver": args.solver, "preconditioner": args.preconditioner, "share_tolerance": args.share_tolerance,
-               "precision": args.precision, "tolerance": args.tolerance}
+               "precision": args.precision, "tolerance": args.tolerance, "operator": args.operator}
     if args.solver in ("pcg", "auto"):
         options["block_cg"] = not args.column_cg
     for n in args.sizes:
@@ -118,6 +136,7 @@ def main(argv=None) -> int:
               f"{info['preconditioner']} blocks {info['blocks']} "
               f"{info['precond_mb']:.0f} MB  setup {info['setup_s']:.1f} s  "
               f"P^-1 {info.get('precond_ms', 0):.2f} ms  A {info.get('operator_ms', 0):.2f} ms  "
+              f"assembly {info.get('assemble_ms', 0):.2f} ms  "
               f"graphs {info.get('graph_ms', 0):.2f} ms", flush=True)
     alone = None
     if args.alone:

@@ -17,6 +17,7 @@ from .elastic import element_model
 from .errors import SceneError, SimulationError
 from .launch import launch
 from .linear import SOLVERS, SystemOperator, choose, make_solver
+from .linear.operator import ASSEMBLED_FROM, OPERATORS
 from .model import Model
 from .newton import Newton
 from .readback import Readback
@@ -111,6 +112,11 @@ class Simulator:
             model of several worlds only. Measured on the H200 (docs/performance.md): 1024
             Diamonds step 1.18-1.29 times faster with it, one Diamond or Finger 0.1-1.2 ms
             slower (its small solves run on one thread, and an iteration takes two more launches).
+        operator: how the iterative solvers apply ``A``: "matrix_free" (element by element, each
+            product; what the direct solver's model has), "assembled" (its 3x3 node blocks
+            gathered at each linearization, each product one pass over them for every column:
+            :class:`~warpsoft.linear.operator.AssembledBlocks`) or "auto": assembled on CUDA from
+            ``ASSEMBLED_FROM`` elements (a batch of designs), matrix-free elsewhere.
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
@@ -119,7 +125,7 @@ class Simulator:
                  factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
                  qp: str = "auto", newton_iterations: int = 10, newton_tolerance: float | None = None,
                  line_search: int = 4, lazy_contacts: bool = True, factor_reuse: float = 0.0,
-                 share_tolerance: float = 1e-10, block_cg: bool | None = None):
+                 share_tolerance: float = 1e-10, block_cg: bool | None = None, operator: str = "auto"):
         if solver not in SOLVERS:
             raise SceneError(f"Simulator: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         if not (0.0 < float(tolerance) < 1.0):
@@ -133,6 +139,8 @@ class Simulator:
         self.factor_reuse = float(factor_reuse)
         if not (0.0 <= float(share_tolerance) < 1.0):
             raise SceneError(f"Simulator: share_tolerance must lie in [0, 1), got {share_tolerance!r}")
+        if operator not in OPERATORS:
+            raise SceneError(f"Simulator: operator must be one of {', '.join(OPERATORS)}, got {operator!r}")
         if check_every is not None and int(check_every) < 1:
             raise SceneError(f"Simulator: check_every must be >= 1, got {check_every!r}")
         self.model = scene if isinstance(scene, Model) else Model(scene, device)
@@ -171,7 +179,9 @@ class Simulator:
         else:  # A = M + k h D + k^2 h^2 K with D = a M + b K
             self.mass_scale = 1.0 + k * h * m.rayleigh_mass
             self.stiffness_scale = (k * h) ** 2 + k * h * m.rayleigh_stiffness
-        self.operator = SystemOperator(m, self.rot, self.elastic)
+        assembled = operator == "assembled" or (operator == "auto" and d.is_cuda
+                                                and self.elastic.num_elements >= ASSEMBLED_FROM)
+        self.operator = SystemOperator(m, self.rot, self.elastic, assembled=assembled)
         self.operator.set_scales(self.mass_scale, self.stiffness_scale)
 
         self.driven = DrivenNodes(m) if m.driven else None  # fixed regions carried by a motion

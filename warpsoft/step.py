@@ -176,6 +176,7 @@ def linearize(sim: Simulator, q: wp.array) -> None:
     """Element rotations and internal forces at ``q``; the solver's per-linearization update."""
     sim.f_int.zero_()
     sim.elastic.linearize(q, sim.rot, sim.f_int)
+    sim.operator.linearized()  # (the assembled blocks, where A is applied from them)
     sim.solver.prepare()
     sim.newton.linearized_at(q)
 

@@ -1,14 +1,22 @@
-"""The step's system ``A = mass_scale M + stiffness_scale K(R)``, applied matrix-free."""
+"""The step's system ``A = mass_scale M + stiffness_scale K(R)``: applied matrix-free, or from its
+3x3 blocks assembled at each linearization (:class:`AssembledBlocks`)."""
 
 from __future__ import annotations
 
+import numpy as np
 import warp as wp
 
+from warpsoft.kernels.linear import assembled as assembled_kernels
 from warpsoft.kernels.linear import cg as linalg
 
 from ..elastic import element_model
 from ..launch import launch
 from ..model import Model
+
+OPERATORS = ("auto", "matrix_free", "assembled")
+# "auto" assembles the blocks on CUDA from this many elements (a batch of designs): there the
+# matrix-free product's atomic additions bind it (measured on an H200, docs/performance.md)
+ASSEMBLED_FROM = 1 << 16
 
 
 class SystemOperator:
@@ -16,25 +24,37 @@ class SystemOperator:
 
     ``rot`` (m mat33d) holds the element rotations of the current linearization;
     ``x`` and ``y`` are ``(k, n)`` arrays of vec3d. ``elastic`` is the element model (the
-    model's corotational one by default).
+    model's corotational one by default). ``assembled``: keep ``K``'s 3x3 blocks, refreshed by
+    :meth:`linearized`, and apply them (:class:`AssembledBlocks`); else every product is formed
+    element by element.
     """
 
-    def __init__(self, model: Model, rot: wp.array, elastic=None):
+    def __init__(self, model: Model, rot: wp.array, elastic=None, assembled: bool = False):
         self.model, self.rot = model, rot
         self.elastic = elastic if elastic is not None else element_model(model)
         self.mass_scale = 0.0
         self.stiffness_scale = 1.0
+        self.blocks = AssembledBlocks(model, self.elastic) if assembled else None
 
     def set_scales(self, mass_scale: float, stiffness_scale: float) -> None:
         if mass_scale != 0.0 and self.model.mass is None:
             raise ValueError("SystemOperator: mass_scale != 0 in a model without mass")
         self.mass_scale, self.stiffness_scale = float(mass_scale), float(stiffness_scale)
 
+    def linearized(self) -> None:
+        """``rot`` was rewritten (a new linearization): the assembled blocks follow it (nothing to
+        do matrix-free)."""
+        if self.blocks is not None:
+            self.blocks.refresh(self.rot)
+
     def apply(self, x: wp.array, y: wp.array, done: wp.array | None = None) -> None:
         """``y = A x``. ``done``: a solver's CG scalars ``(k, worlds, slots)``; the columns of the
         worlds they mark converged are skipped and keep what ``y`` held (a converged world stops
         costing work)."""
         m = self.model
+        if self.blocks is not None:
+            self.blocks.apply(x, y, self.mass_scale, self.stiffness_scale, done)
+            return
         if self.mass_scale != 0.0:
             launch(linalg.mass_product, x.shape, inputs=[x, m.mass, self.mass_scale, m.node_world, done],
                    outputs=[y], device=m.device)
@@ -43,3 +63,49 @@ class SystemOperator:
         else:
             launch(linalg.zero_columns, x.shape, inputs=[m.node_world, done], outputs=[y], device=m.device)
         self.elastic.apply(x, y, self.rot, self.stiffness_scale, done)
+
+
+class AssembledBlocks:
+    """``K`` as 3x3 blocks (N/m) compressed by node rows, both triangles: ``row_start`` ``(n + 1,)``,
+    ``column`` and ``values`` ``(slots,)``. The slots are the node pairs that share an element;
+    each sums the element blocks listed for it (``slot_start`` ``(slots + 1,)``, ``contributions``
+    ``(element blocks,)``: indexes into the element models' blocks, :meth:`Elements.blocks`).
+    A refresh writes the element blocks (``element_blocks``, ``(element blocks,)`` mat33d) and
+    gathers them; a product reads each slot once for all its columns. Device memory: 76 bytes an
+    element block, 80 a slot (a Diamond: 16 element blocks an element, about 13 slots a node)."""
+
+    def __init__(self, model: Model, elastic):
+        self.model, self.elastic = model, elastic
+        n, d = model.num_nodes, model.device
+        pairs = elastic.block_nodes()  # (element blocks, 2): the nodes each element block couples
+        key = pairs[:, 0] * n + pairs[:, 1]
+        order = np.argsort(key, kind="stable")  # the element blocks grouped by slot, rows in order
+        ordered = key[order]
+        first = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1]]))  # each slot's first
+        slots = ordered[first]
+        self.num_slots = len(slots)
+        self.row_start = wp.array(np.searchsorted(slots // n, np.arange(n + 1)).astype(np.int32), device=d)
+        self.column = wp.array((slots % n).astype(np.int32), device=d)
+        self.slot_start = wp.array(np.append(first, len(key)).astype(np.int32), device=d)
+        self.contributions = wp.array(order.astype(np.int32), device=d)
+        self.element_blocks = wp.zeros(len(key), dtype=wp.mat33d, device=d)
+        self.values = wp.zeros(self.num_slots, dtype=wp.mat33d, device=d)
+        self.no_mass = wp.zeros(0, dtype=wp.float64, device=d)
+        self.memory_bytes = 76 * len(key) + 80 * self.num_slots + 4 * (n + 1)
+
+    def refresh(self, rot: wp.array) -> None:
+        """The blocks of ``K`` at the rotations ``rot`` (the element models' linearization)."""
+        self.elastic.blocks(rot, self.element_blocks)
+        launch(assembled_kernels.gather_blocks, self.num_slots,
+               inputs=[self.element_blocks, self.slot_start, self.contributions], outputs=[self.values],
+               device=self.model.device)
+
+    def apply(self, x: wp.array, y: wp.array, mass_scale: float, stiffness_scale: float,
+              done: wp.array | None = None) -> None:
+        """``y[c] = mass_scale M x[c] + stiffness_scale K x[c]`` for ``(k, n)`` vec3d ``x``, ``y``;
+        the converged columns of ``done``'s worlds keep what ``y`` held."""
+        m = self.model
+        mass = m.mass if mass_scale != 0.0 else self.no_mass
+        launch(assembled_kernels.block_product(x.shape[0]), m.num_nodes,
+               inputs=[x, self.row_start, self.column, self.values, stiffness_scale, mass, mass_scale, m.node_world,
+                       done], outputs=[y], device=m.device)
