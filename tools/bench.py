@@ -273,13 +273,20 @@ def main(argv=None) -> int:
                     help="pcg's warped preconditioner (auto: dense on CUDA up to 12k free DOFs, host above)")
     ap.add_argument("--factor-reuse", type=float, default=0.0,
                     help="direct: the Simulator's factor_reuse (0: a factorization at every linearization)")
-    ap.add_argument("--column-cg", action="store_true", help="pcg: each column its own CG (block_cg=False)")
+    cg = ap.add_mutually_exclusive_group()
+    cg.add_argument("--column-cg", action="store_const", dest="block_cg", const=False,
+                    help="pcg: each column its own CG (block_cg=False)")
+    cg.add_argument("--block-cg", action="store_const", dest="block_cg", const=True,
+                    help="pcg: a world's columns in one block CG (block_cg=True); default: the Simulator's choice")
+    ap.add_argument("--operator", choices=["auto", "matrix_free", "assembled"], default="auto",
+                    help="how the iterative solvers apply A")
     args = ap.parse_args(argv)
     kind = "cuda" if args.device.startswith("cuda") else "cpu"
     if args.compare:
         runs = [("v1", *CONFIGS["v1"][kind]), ("v2", CONFIGS["v2"][kind][0], {"qp": args.qp})]
     else:
-        pcg = {"precision": args.precision, "preconditioner": args.preconditioner, "block_cg": not args.column_cg}
+        pcg = {"precision": args.precision, "preconditioner": args.preconditioner, "block_cg": args.block_cg,
+               "operator": args.operator}
         runs = [("v2", args.solver, {"qp": args.qp} | (pcg if args.solver in ("pcg", "auto") else {}))]
     if args.factor_reuse:
         runs = [(config, solver, options | {"factor_reuse": args.factor_reuse}) for config, solver, options in runs
