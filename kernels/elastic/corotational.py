@@ -156,6 +156,33 @@ def stiffness_diagonal(
 
 
 @wp.kernel
+def stiffness_slots(
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    slot_start: wp.array(dtype=wp.int32),
+    contributions: wp.array(dtype=wp.int32),
+    values: wp.array(dtype=wp.mat33d),
+):
+    """The blocks of :func:`stiffness_blocks` summed where they land, a thread per slot, none
+    stored: ``values[s] = sum V K0(R g_a, R g_b)`` (N/m) over the element blocks ``16 e + 4 a + b``
+    listed for slot ``s`` (``contributions[slot_start[s]:slot_start[s + 1]]``)."""
+    s = wp.tid()
+    acc = wp.mat33d()
+    for j in range(slot_start[s], slot_start[s + 1]):
+        k = contributions[j]
+        e = k // 16
+        Di = dm_inv[e]
+        R = rot[e]
+        ga = R * shape_gradient(Di, (k // 4) % 4)
+        gb = R * shape_gradient(Di, k % 4)
+        acc += volume[e] * stiffness_block(ga, gb, mu[e], lam[e])
+    values[s] = acc
+
+
+@wp.kernel
 def stiffness_blocks(
     dm_inv: wp.array(dtype=wp.mat33d),
     volume: wp.array(dtype=wp.float64),

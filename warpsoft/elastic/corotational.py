@@ -80,6 +80,17 @@ class Corotational:
         launch(self.kernels.stiffness_blocks, self.group.count, inputs=self._tangent(rot), outputs=[blocks],
                device=m.device)
 
+    def gather_blocks(self, rot: wp.array, slot_start: wp.array, contributions: wp.array, values: wp.array) -> bool:
+        """The blocks of :meth:`blocks` summed into slots, none stored: ``values[s]`` (N/m) sums the
+        blocks ``contributions[slot_start[s]:slot_start[s + 1]]`` (indexes as in :meth:`blocks`).
+        Returns False where the element model has no such kernel (the caller stores the blocks)."""
+        kernel = getattr(self.kernels, "stiffness_slots", None)
+        if kernel is None:
+            return False
+        launch(kernel, len(values), inputs=[*self._tangent(rot), slot_start, contributions], outputs=[values],
+               device=self.model.device)
+        return True
+
     def node_rotations(self, rot: wp.array, node_sum: wp.array) -> None:
         """Accumulate ``V_e R_e`` into each node of element ``e``, ``node_sum`` ``(n,)`` mat33d."""
         m, g = self.model, self.group

@@ -70,11 +70,15 @@ class AssembledBlocks:
     ``column`` and ``values`` ``(slots,)``. The slots are the node pairs that share an element;
     each sums the element blocks listed for it (``slot_start`` ``(slots + 1,)``, ``contributions``
     ``(element blocks,)``: indexes into the element models' blocks, :meth:`Elements.blocks`).
-    A refresh writes the element blocks (``element_blocks``, ``(element blocks,)`` mat33d) and
-    gathers them; a product reads each slot once for all its columns. Device memory: 76 bytes an
-    element block, 80 a slot (a Diamond: 16 element blocks an element, about 13 slots a node)."""
+    A refresh sums them into the slots. ``fused``: a thread per slot forms its element blocks
+    (where the element model can: one corotational group); else, or with ``fused=False``, the
+    element blocks are written first (``element_blocks``, ``(element blocks,)`` mat33d) and
+    gathered. None: fused on CUDA (H200, 1024 Diamonds: see docs/performance.md), written on
+    the CPU, where one thread forming each block anew took 2.1 ms against 0.76 (two Diamonds). A product reads each slot
+    once for all its columns. Device memory: 4 bytes an element block (76 where they are
+    written), 80 a slot (a Diamond: 16 element blocks an element, about 10 slots a node)."""
 
-    def __init__(self, model: Model, elastic):
+    def __init__(self, model: Model, elastic, fused: bool | None = None):
         self.model, self.elastic = model, elastic
         n, d = model.num_nodes, model.device
         pairs = elastic.block_nodes()  # (element blocks, 2): the nodes each element block couples
@@ -88,13 +92,18 @@ class AssembledBlocks:
         self.column = wp.array((slots % n).astype(np.int32), device=d)
         self.slot_start = wp.array(np.append(first, len(key)).astype(np.int32), device=d)
         self.contributions = wp.array(order.astype(np.int32), device=d)
-        self.element_blocks = wp.zeros(len(key), dtype=wp.mat33d, device=d)
         self.values = wp.zeros(self.num_slots, dtype=wp.mat33d, device=d)
         self.no_mass = wp.zeros(0, dtype=wp.float64, device=d)
-        self.memory_bytes = 76 * len(key) + 80 * self.num_slots + 4 * (n + 1)
+        groups = elastic.groups
+        can = len(groups) == 1 and hasattr(groups[0].kernels, "stiffness_slots")
+        self.fused = can and (d.is_cuda if fused is None else bool(fused))
+        self.element_blocks = None if self.fused else wp.zeros(len(key), dtype=wp.mat33d, device=d)
+        self.memory_bytes = (4 if self.fused else 76) * len(key) + 80 * self.num_slots + 4 * (n + 1)
 
     def refresh(self, rot: wp.array) -> None:
         """The blocks of ``K`` at the rotations ``rot`` (the element models' linearization)."""
+        if self.fused and self.elastic.groups[0].gather_blocks(rot, self.slot_start, self.contributions, self.values):
+            return
         self.elastic.blocks(rot, self.element_blocks)
         launch(assembled_kernels.gather_blocks, self.num_slots,
                inputs=[self.element_blocks, self.slot_start, self.contributions], outputs=[self.values],
