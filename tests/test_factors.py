@@ -53,12 +53,16 @@ def test_the_level_programs_solve_with_the_factor_cholmod_made():
         analysis.programs(sp.csc_matrix(sp.tril(L.toarray() != 0, format="csc") * 1.0 + sp.eye(L.shape[0])))
 
 
-def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it():
+@pytest.mark.parametrize("tiled", [False, True])
+def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(tiled):
     """At rest the 1 and 3 MPa beams share a factor, the second's inverse scaled by 1/3; the
-    product equals the host factor's. A world whose columns all converged is not touched."""
+    product equals the host factor's. A world whose columns all converged is not touched. So
+    with every level through the tiled kernel that CUDA gives long rows (one lane a row here)."""
     sim = ws.Simulator(ws.finalize([beam(), beam(3e6), beam(cells=16)]), solver="direct")
     sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
     pre = WorldFactors(sim.operator, 2, "float64")
+    if tiled:
+        pre.lanes, pre.lanes_from = 1, 0.0
     scal = wp.zeros((2, 3, NUM_SCALARS), dtype=wp.float64)
     pre.watch(scal)
     pre.prepare()

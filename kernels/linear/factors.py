@@ -81,3 +81,51 @@ def level_kernel(columns: int, dtype):
 
     _kernels[key] = factor_level
     return factor_level
+
+
+def level_kernel_lanes(columns: int, dtype, lanes: int):
+    """:func:`level_kernel` with ``lanes`` threads per task (a tiled launch, ``block_dim = lanes``,
+    CUDA): they stride the task's entries, so that a long row keeps ``lanes`` loads in flight
+    and neighbouring threads read neighbouring entries, and a tile sum adds their shares."""
+    key = (columns, dtype, lanes)
+    if key in _kernels:
+        return _kernels[key]
+    K = columns
+    L = lanes
+    sums = wp.types.vector(length=K, dtype=dtype)
+
+    @wp.kernel(module="unique")
+    def factor_level_lanes(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=wp.int32),
+                           val: wp.array(dtype=dtype), node_world: wp.array(dtype=wp.int32),
+                           world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
+                           inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype)):
+        t, lane = wp.tid()
+        task = tasks[first + t]
+        row = task[0]
+        w = node_world[row // 3]
+        running = wp.int32(0)
+        for c in range(K):
+            if scal[c, w, DONE] == wp.float64(0.0):
+                running = 1
+        if running == 0:
+            return  # every column of the world converged (the whole block returns)
+        base = world_row[w]
+        acc = sums()
+        for e in range(task[1] + lane, task[2], L):  # the diagonal block's inverse on the input
+            v = val[e]
+            j = base + col[e]
+            for c in range(K):
+                acc[c] = acc[c] + v * inp[j, c]
+        for e in range(task[2] + lane, task[3], L):  # the rows solved at earlier levels
+            v = val[e]
+            j = base + col[e]
+            for c in range(K):
+                acc[c] = acc[c] + v * out[j, c]
+        total = wp.tile_sum(wp.tile(acc, preserve_type=True))
+        if lane == 0:
+            s = total[0]
+            for c in range(K):
+                out[row, c] = s[c]
+
+    _kernels[key] = factor_level_lanes
+    return factor_level_lanes

@@ -30,6 +30,9 @@ from .blocks import WorldGroups, _dense_entries
 from .operator import SystemOperator
 from .supernodal import Supernodal
 
+LANES = 32  # threads a row in the levels of long rows, on CUDA
+LANES_FROM = 128.0  # the mean entries a row from which a level takes them (docs/performance.md)
+
 
 class WorldFactors(WorldGroups):
     """Args:
@@ -66,7 +69,11 @@ class WorldFactors(WorldGroups):
             free[self.local_free[self.mesh_of.index(key)]] = True
             self.patterns[key] = Pattern(flat // (3 * nodes), flat % (3 * nodes), free)
         self.factors = self.analyses = self.orders = None  # per block, made at the first refresh
-        self.solves = None  # per direction: (tasks, col, val, [(first, count) per level])
+        self.solves = None  # per direction: (tasks, col, val, [(first, count, mean entries a row) per level])
+        # levels whose rows average at least lanes_from entries take `lanes` threads a row
+        # (level_kernel_lanes, a tiled launch); the others a thread a row. None: never (the CPU,
+        # where a tiled launch runs one thread a block)
+        self.lanes, self.lanes_from = (LANES, LANES_FROM) if d.is_cuda else (1, None)
         self.inv_scale = None
 
     @property
@@ -149,13 +156,15 @@ class WorldFactors(WorldGroups):
             order = np.argsort(levels, kind="stable")  # by level, then world, then row
             counts = np.bincount(levels, minlength=int(levels.max()) + 1)
             firsts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+            length = np.bincount(levels, weights=tasks[:, 3] - tasks[:, 1], minlength=len(counts))
             if tasks.max() >= 2 ** 31:
                 raise ValueError(f"WorldFactors: {tasks.max()} entries pass the 2^31 a Warp index holds; "
                                  "step fewer designs at a time")
             solves.append((wp.array(tasks[order].astype(np.int32), dtype=wp.vec4i, device=d),
                            wp.array(col.astype(np.int32), dtype=wp.int32, device=d),
                            wp.array(val, dtype=self.dtype, device=d),
-                           [(int(f), int(c)) for f, c in zip(firsts, counts, strict=True) if c]))
+                           [(int(f), int(c), float(n / c)) for f, c, n in zip(firsts, counts, length, strict=True)
+                            if c]))
         self.solves = solves
 
     def apply(self, r: wp.array, z: wp.array) -> None:
@@ -166,10 +175,14 @@ class WorldFactors(WorldGroups):
         launch(kernels.rotate_in_scaled(self.dtype), r.shape,
                inputs=[r, self.q_rot, m.mask, m.node_world, self.inv_scale], outputs=[self.u], device=d)
         level = kernels.level_kernel(k, self.dtype)
+        lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes)
         for (tasks, col, val, levels), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x), strict=True):
-            for first, count in levels:
-                launch(level, count, inputs=[tasks, first, col, val, m.node_world, self.world_row, self._done, inp],
-                       outputs=[out], device=d)
+            for first, count, length in levels:
+                inputs = [tasks, first, col, val, m.node_world, self.world_row, self._done, inp]
+                if lanes is not None and length >= self.lanes_from:  # long rows: a block of threads each
+                    wp.launch_tiled(lanes, dim=[count], inputs=inputs, outputs=[out], block_dim=self.lanes, device=d)
+                else:
+                    launch(level, count, inputs=inputs, outputs=[out], device=d)
         _, rotate_out = rotations.flat_rotations(self.dtype)
         launch(rotate_out, r.shape, inputs=[self.x, self.q_rot, m.mask], outputs=[z], device=d)
 
