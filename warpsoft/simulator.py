@@ -115,8 +115,11 @@ class Simulator:
         operator: how the iterative solvers apply ``A``: "matrix_free" (element by element, each
             product; what the direct solver's model has), "assembled" (its 3x3 node blocks
             gathered at each linearization, each product one pass over them for every column:
-            :class:`~warpsoft.linear.operator.AssembledBlocks`) or "auto": assembled on CUDA from
-            ``ASSEMBLED_FROM`` elements (a batch of designs), matrix-free elsewhere.
+            :class:`~warpsoft.linear.operator.AssembledBlocks`) or "auto": assembled for the
+            iterative solvers on CUDA from ``ASSEMBLED_FROM`` elements (a batch of designs; H200,
+            1024 Diamonds: the product 3.46 -> 0.94 ms, the step 161.70 -> 133.56 ms), matrix-free
+            elsewhere (one robot on the H200 was slower assembled: the refresh costs more than its
+            few products save).
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
@@ -179,7 +182,7 @@ class Simulator:
         else:  # A = M + k h D + k^2 h^2 K with D = a M + b K
             self.mass_scale = 1.0 + k * h * m.rayleigh_mass
             self.stiffness_scale = (k * h) ** 2 + k * h * m.rayleigh_stiffness
-        assembled = operator == "assembled" or (operator == "auto" and d.is_cuda
+        assembled = operator == "assembled" or (operator == "auto" and d.is_cuda and self.solver_name != "direct"
                                                 and self.elastic.num_elements >= ASSEMBLED_FROM)
         self.operator = SystemOperator(m, self.rot, self.elastic, assembled=assembled)
         self.operator.set_scales(self.mass_scale, self.stiffness_scale)

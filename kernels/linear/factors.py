@@ -40,6 +40,39 @@ def rotate_in_scaled(dtype):
     return factor_rotate_in
 
 
+def _row_funcs(columns: int, dtype):
+    """The two functions a level's kernels share for ``k = columns`` and ``dtype``: ``running(scal,
+    w)``, whether some column of world ``w`` has not converged, and ``entries(acc, e0, e1, step,
+    base, col, val, src)``, ``acc`` plus the sums ``sum_e val[e] src[base + col[e], c]`` over
+    ``e0 <= e < e1`` by ``step``, ``(k,)`` (one running sum: the rounding of one loop)."""
+    key = ("funcs", columns, dtype)
+    if key in _kernels:
+        return _kernels[key]
+    K = columns
+    sums = wp.types.vector(length=K, dtype=dtype)
+
+    @wp.func
+    def running(scal: wp.array3d(dtype=wp.float64), w: int) -> bool:
+        for c in range(K):
+            if scal[c, w, DONE] == wp.float64(0.0):
+                return True
+        return False
+
+    @wp.func
+    def entries(acc: sums, e0: int, e1: int, step: int, base: int, col: wp.array(dtype=wp.int32),
+                val: wp.array(dtype=dtype), src: wp.array2d(dtype=dtype)) -> sums:
+        total = acc + sums()
+        for e in range(e0, e1, step):
+            v = val[e]
+            j = base + col[e]
+            for c in range(K):
+                total[c] = total[c] + v * src[j, c]
+        return total
+
+    _kernels[key] = (running, entries)
+    return running, entries
+
+
 def level_kernel(columns: int, dtype):
     """``factor_level(tasks, first, col, val, node_world, world_row, scal, inp, out)`` for ``k =
     columns`` right-hand sides in precision ``dtype`` (compile-time constants, hence cached per
@@ -49,6 +82,7 @@ def level_kernel(columns: int, dtype):
         return _kernels[key]
     K = columns
     sums = wp.types.vector(length=K, dtype=dtype)
+    running, entries = _row_funcs(columns, dtype)
 
     @wp.kernel(module="unique")
     def factor_level(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=wp.int32),
@@ -58,24 +92,12 @@ def level_kernel(columns: int, dtype):
         task = tasks[first + wp.tid()]
         row = task[0]
         w = node_world[row // 3]
-        running = wp.int32(0)
-        for c in range(K):
-            if scal[c, w, DONE] == wp.float64(0.0):
-                running = 1
-        if running == 0:
+        if not running(scal, w):
             return  # every column of the world converged
         base = world_row[w]
-        acc = sums()
-        for e in range(task[1], task[2]):  # the diagonal block's inverse on the input
-            v = val[e]
-            j = base + col[e]
-            for c in range(K):
-                acc[c] = acc[c] + v * inp[j, c]
-        for e in range(task[2], task[3]):  # the rows solved at earlier levels
-            v = val[e]
-            j = base + col[e]
-            for c in range(K):
-                acc[c] = acc[c] + v * out[j, c]
+        # the diagonal block's inverse on the input, then the rows solved at earlier levels
+        acc = entries(sums(), task[1], task[2], 1, base, col, val, inp)
+        acc = entries(acc, task[2], task[3], 1, base, col, val, out)
         for c in range(K):
             out[row, c] = acc[c]
 
@@ -93,6 +115,7 @@ def level_kernel_lanes(columns: int, dtype, lanes: int):
     K = columns
     L = lanes
     sums = wp.types.vector(length=K, dtype=dtype)
+    running, entries = _row_funcs(columns, dtype)
 
     @wp.kernel(module="unique")
     def factor_level_lanes(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=wp.int32),
@@ -103,24 +126,11 @@ def level_kernel_lanes(columns: int, dtype, lanes: int):
         task = tasks[first + t]
         row = task[0]
         w = node_world[row // 3]
-        running = wp.int32(0)
-        for c in range(K):
-            if scal[c, w, DONE] == wp.float64(0.0):
-                running = 1
-        if running == 0:
+        if not running(scal, w):
             return  # every column of the world converged (the whole block returns)
         base = world_row[w]
-        acc = sums()
-        for e in range(task[1] + lane, task[2], L):  # the diagonal block's inverse on the input
-            v = val[e]
-            j = base + col[e]
-            for c in range(K):
-                acc[c] = acc[c] + v * inp[j, c]
-        for e in range(task[2] + lane, task[3], L):  # the rows solved at earlier levels
-            v = val[e]
-            j = base + col[e]
-            for c in range(K):
-                acc[c] = acc[c] + v * out[j, c]
+        acc = entries(sums(), task[1] + lane, task[2], L, base, col, val, inp)
+        acc = entries(acc, task[2] + lane, task[3], L, base, col, val, out)
         total = wp.tile_sum(wp.tile(acc, preserve_type=True))
         if lane == 0:
             s = total[0]

@@ -45,7 +45,8 @@ class WorldFactors(WorldGroups):
 
     Attributes: ``blocks`` (distinct factors), ``block_of`` ``(worlds,)``, ``levels`` (the forward
     and backward solves' launches), ``entries`` (the programs' numbers, all blocks), ``refreshes``,
-    ``memory_bytes``.
+    ``memory_bytes``, ``lanes`` and ``lanes_from`` (the threads a row of the levels whose rows
+    average that many entries; H200, 1024 different Diamonds: P^-1 26.6 -> 9.8 ms with 32 from 128).
     """
 
     capturable = True
