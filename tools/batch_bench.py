@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from datetime import date
@@ -117,6 +118,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="out/batch")
     args = ap.parse_args(argv)
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
+    if args.workers > 1 and not os.environ.get("WARPSOFT_MESH_CACHE"):
+        ap.error("--workers meshes ahead into the mesh cache: set WARPSOFT_MESH_CACHE to a folder")
     t0 = time.perf_counter()
     premesh(ROOT / "scenes/diamond.py", everything, args.workers)
     scenes = [build_scene(ROOT / "scenes/diamond.py", d) for d in everything]
