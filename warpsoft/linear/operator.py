@@ -82,6 +82,9 @@ class AssembledBlocks:
         self.model, self.elastic = model, elastic
         n, d = model.num_nodes, model.device
         pairs = elastic.block_nodes()  # (element blocks, 2): the nodes each element block couples
+        if len(pairs) >= 2 ** 31:
+            raise ValueError(f"AssembledBlocks: {len(pairs)} element blocks pass the 2^31 a Warp index holds; "
+                             "step fewer designs at a time, or use operator='matrix_free'")
         key = pairs[:, 0] * n + pairs[:, 1]
         order = np.argsort(key, kind="stable")  # the element blocks grouped by slot, rows in order
         ordered = key[order]
