@@ -23,15 +23,16 @@ def bent(scenes):
     return sim
 
 
-def test_the_level_programs_solve_with_the_factor_cholmod_made():
+@pytest.mark.parametrize("ordering", ["cholmod", "nested_dissection"])
+def test_the_level_programs_solve_with_the_factor_cholmod_made(ordering):
     """CHOLMOD's factor read out is the permuted system's (``A[order][:, order] = L L^T``); its
     supernodes' forward and backward programs, run level by level, solve ``A x = b`` to
-    round-off; and every row of a level reads only rows of earlier levels."""
+    round-off; and every row of a level reads only rows of earlier levels. In either ordering."""
     sim = bent([beam(cells=24)])
     assembly = sim.solver.assembly
     values = assembly.values()
     A = assembly.matrix(values)
-    L, order = CholmodFactor(assembly).lower(values)
+    L, order = CholmodFactor(assembly, ordering=ordering).lower(values)
     assert np.abs((A[order][:, order] - L @ L.T).toarray()).max() < 1e-12 * np.abs(A).max()
     analysis = Supernodal(L)
     forward, backward = analysis.programs(L)
@@ -107,9 +108,34 @@ def test_each_world_steps_as_alone_and_as_with_dense_blocks():
         assert np.abs(dense_sim.positions(w) - q).max() < 1e-8 * moved
 
 
+def test_nested_dissection_keeps_the_levels_from_growing_with_the_length():
+    """A beam twice as long: CHOLMOD's own ordering (AMD) makes an elimination tree whose depth,
+    so the solves' levels, grows with the length (31 -> 67 here); nested dissection halves the
+    beam by a cross-section, recursively, so its levels grow by a step or two (10 -> 10). That is
+    the launches of every CG iteration on the device. CHOLMOD's options are left as they were."""
+    from cvxopt import cholmod
+
+    before = dict(cholmod.options)
+    levels = {}
+    for cells in (24, 48):
+        sim = bent([beam(cells=cells)])
+        values = sim.solver.assembly.values()
+        for ordering in ("cholmod", "nested_dissection"):
+            L, _ = CholmodFactor(sim.solver.assembly, ordering=ordering).lower(values)
+            levels[ordering, cells] = Supernodal(L).levels[0]
+    assert levels["cholmod", 48] > 1.8 * levels["cholmod", 24]
+    assert levels["nested_dissection", 48] <= levels["nested_dissection", 24] + 2
+    assert levels["nested_dissection", 48] < levels["cholmod", 48] / 3
+    assert dict(cholmod.options) == before
+
+
 def test_bad_input_is_named():
     sim = bent([beam()])
     with pytest.raises(ValueError, match="WorldFactors: precision must be 'float64' or 'float32', got 'half'"):
         WorldFactors(sim.operator, 1, "half")
+    with pytest.raises(ValueError, match="WorldFactors: ordering must be one of .*, got 'metis'"):
+        WorldFactors(sim.operator, 1, ordering="metis")
+    with pytest.raises(ValueError, match="CholmodFactor: ordering must be one of .*, got 'amd'"):
+        CholmodFactor(sim.solver.assembly, ordering="amd")
     with pytest.raises(ValueError, match="auto, host, dense, blocks, factors, got 'factor'"):
         ws.Simulator(beam(), solver="pcg", preconditioner="factor")

@@ -7,7 +7,11 @@ one of many different meshes. Here each world (or group of proportional worlds, 
 the sparse Cholesky factor of its rest system instead, CHOLMOD's: 0.1-0.4 M numbers for the
 Diamond's 3048-5157 free DOFs, against 9-27 M. Its two triangular solves run on the device as
 levels of independent rows (:mod:`warpsoft.linear.supernodal`): one launch per level, every
-world's rows of that level in it, 18-36 levels each way for the Diamond.
+world's rows of that level in it. A level's launch has a floor that converged worlds do not
+lower (and the last CG iterations run only the slowest designs), so the factors take
+METIS's nested dissection, whose elimination trees are shallow: 11-16 levels each way for a
+sample of 128 of 1024 different Diamonds, against 30-53 with CHOLMOD's own ordering (AMD), for
+1 % more entries (H200, those 1024: P^-1 9.18 -> 7.20 ms, a step's graphs 154.9 -> 129.6 ms).
 
 So ``P^-1 = Q blockdiag(s_w^-1 P_b^T L_b^-T L_b^-1 P_b) Q^T``: the same preconditioner as the
 dense inverse (the rest system's exact inverse, turned by the node rotations), at a fraction of
@@ -25,13 +29,14 @@ from warpsoft.kernels.linear import warped as rotations
 
 from ..errors import SceneError
 from ..launch import launch
-from .assembly import CholmodFactor, Pattern
+from .assembly import ORDERINGS, CholmodFactor, Pattern
 from .blocks import WorldGroups, _dense_entries
 from .operator import SystemOperator
 from .supernodal import Supernodal
 
 LANES = 32  # threads a row in the levels of long rows, on CUDA
 LANES_FROM = 128.0  # the mean entries a row from which a level takes them (docs/performance.md)
+ORDERING = "nested_dissection"  # of the factors: levels, not fill, set the device's time (docs/performance.md)
 
 
 class WorldFactors(WorldGroups):
@@ -42,6 +47,9 @@ class WorldFactors(WorldGroups):
         refresh_ratio, refresh_floor: when to refactorize, as :class:`~warpsoft.linear.warped.WarpedFactor`'s.
         share, share_tolerance: which worlds share a factor, as
             :class:`~warpsoft.linear.blocks.WorldBlocks`'.
+        ordering: the factors' ordering, :class:`~warpsoft.linear.assembly.CholmodFactor`'s
+            (default :data:`ORDERING`: a level's launch has a floor however few worlds still
+            run, so a shallow tree pays).
 
     Attributes: ``blocks`` (distinct factors), ``block_of`` ``(worlds,)``, ``levels`` (the forward
     and backward solves' launches), ``entries`` (the programs' numbers, all blocks), ``refreshes``,
@@ -53,9 +61,12 @@ class WorldFactors(WorldGroups):
 
     def __init__(self, operator: SystemOperator, columns: int, precision: str = "float32",
                  refresh_ratio: float = 2.0, refresh_floor: int = 40, share: bool = True,
-                 share_tolerance: float = 1e-10):
+                 share_tolerance: float = 1e-10, ordering: str | None = None):
         if precision not in ("float64", "float32"):
             raise ValueError(f"WorldFactors: precision must be 'float64' or 'float32', got {precision!r}")
+        self.ordering = ORDERING if ordering is None else ordering
+        if self.ordering not in ORDERINGS:
+            raise ValueError(f"WorldFactors: ordering must be one of {ORDERINGS}, got {ordering!r}")
         super().__init__(operator, columns, refresh_ratio, refresh_floor, share, share_tolerance)
         m, d = operator.model, operator.model.device
         self.dtype = wp.float64 if precision == "float64" else wp.float32
@@ -110,7 +121,8 @@ class WorldFactors(WorldGroups):
         first = self.block_of is None
         if first:
             self._group(blocks)
-            self.factors = [CholmodFactor(self.patterns[self.mesh_of[w]]) for w in self.first_world]
+            self.factors = [CholmodFactor(self.patterns[self.mesh_of[w]], ordering=self.ordering)
+                            for w in self.first_world]
             self.analyses, self.orders = [], []
         programs = []
         for b, w in enumerate(self.first_world):
