@@ -64,6 +64,11 @@ class Layout:
         self.world_of_row = np.searchsorted(rows.world_row_start, np.arange(rows.num_rows), side="right") - 1
         self.forces = rows.world_actuators + rows.world_bilateral + rows.world_contacts > 0
         self.gaps = np.zeros(worlds)  # each world's gap to its last linear prediction (keep_gaps)
+        # per world, as Python values (the loop of record_rows reads them 1024 times a step):
+        # what it records (direct: its Gauss-Seidel's outcome; inverse: its actuators' reach)
+        inverse = [bool(scenes[w].inverse) for w in range(worlds)]
+        self.world_flags = list(zip((rows.world_bilateral > 0).tolist(), (rows.world_contacts > 0).tolist(),
+                                    self.forces.tolist(), inverse, strict=True))
 
 
 def layout(sim: Simulator) -> Layout:
@@ -76,7 +81,7 @@ def layout(sim: Simulator) -> Layout:
 def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
     """Each world's rows at the new state (evaluated on the device by the step), by name, and the
     Gauss-Seidel statistics, from the step's read (``host``)."""
-    rows, scenes, lay = sim.rows, sim.model.scenes, layout(sim)
+    rows, lay = sim.rows, layout(sim)
     targets = rows.set_time(stats.time)  # the step's targets, already on the device
     delta, points = host["delta"], host["points"][: rows.num_points]
     lam = host["lam"] if rows.num_columns else np.zeros(rows.num_rows)
@@ -88,23 +93,29 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
     missed = actuator_misses(sim, stats, delta, lay) if len(lay.direct_rows) else []
     delta_l, lam_l = delta.tolist(), lam.tolist()
     result = host["resolve"].tolist() if rows.num_columns else None
-    for w, ws in enumerate(stats.worlds):
-        start, names = lay.actuators[w]
-        ws.actuator_delta = dict(zip(names, delta_l[start:start + len(names)], strict=True))
-        ws.actuator_lambda = dict(zip(names, lam_l[start:start + len(names)], strict=True))
-        ws.effectors = {name: points[i] for name, i in lay.effectors[w]}
-        ws.targets = {name: targets[lay.target_index[j]] for name, j in lay.targeted[w]}
-        ws.effector_error = {name: errors[j] for name, j in lay.targeted[w]}
-        ws.actuator_residual = {name: missed[j] for name, _, j in lay.watched[w]}
-        if rows.world_bilateral[w]:
+    # (a world's empty dictionaries stay the ones WorldStats made; 256 Diamonds: 0.98 -> 0.75 ms, CPU VM)
+    for w, (ws, (start, names), (bilateral, contacts, forces, inverse)) in enumerate(
+            zip(stats.worlds, lay.actuators, lay.world_flags, strict=True)):
+        if names:
+            end = start + len(names)
+            ws.actuator_delta = dict(zip(names, delta_l[start:end], strict=True))
+            ws.actuator_lambda = dict(zip(names, lam_l[start:end], strict=True))
+        if lay.effectors[w]:
+            ws.effectors = {name: points[i] for name, i in lay.effectors[w]}
+        if lay.targeted[w]:
+            ws.targets = {name: targets[lay.target_index[j]] for name, j in lay.targeted[w]}
+            ws.effector_error = {name: errors[j] for name, j in lay.targeted[w]}
+        if lay.watched[w]:
+            ws.actuator_residual = {name: missed[j] for name, _, j in lay.watched[w]}
+        if bilateral:
             ws.attachments = rows.kind("attachment").forces(lam, w)
-        if rows.world_contacts[w]:
+        if contacts:
             watch.contacts(sim, stats, w, host)
-        if lay.forces[w]:
+        if forces:
             ws.linearization_error = gaps[w]
-        if names and scenes[w].inverse:
+        if names and inverse:
             watch.out_of_reach(sim, stats, w, delta[start:start + len(names)], lam[start:start + len(names)])
-        if lay.forces[w] and not scenes[w].inverse:
+        if forces and not inverse:
             ws.resolve_iterations, ws.resolve_residual = int(result[w][0]), result[w][1]
             if not result[w][2]:
                 stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: Gauss-Seidel stopped after "
