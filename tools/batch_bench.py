@@ -26,6 +26,8 @@ import warp as wp
 import warpsoft as ws
 from warpsoft.io.runner import build_scene
 from warpsoft.io.sweep import premesh
+from warpsoft.linear import factors
+from warpsoft.linear.assembly import ORDERINGS
 
 ROOT = Path(__file__).resolve().parents[1]
 GRAPHS = ("device_step", "newton_step", "line_search", "device_before_qp", "newton_before_qp", "device_after_qp")
@@ -115,8 +117,12 @@ def main(argv=None) -> int:
     ap.add_argument("--operator", default="auto", choices=["auto", "matrix_free", "assembled"],
                     help="how the iterative solvers apply A")
     ap.add_argument("--tolerance", type=float, default=1e-6, help="CG relative residual")
+    ap.add_argument("--factor-ordering", default=None, choices=list(ORDERINGS),
+                    help="factors: their ordering (default warpsoft.linear.factors.ORDERING)")
     ap.add_argument("--out", default="out/batch")
     args = ap.parse_args(argv)
+    if args.factor_ordering:
+        factors.ORDERING = args.factor_ordering  # (WorldFactors reads it when made)
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
     if args.workers > 1 and not os.environ.get("WARPSOFT_MESH_CACHE"):
         ap.error("--workers meshes ahead into the mesh cache: set WARPSOFT_MESH_CACHE to a folder")
