@@ -172,12 +172,15 @@ class CholmodFactor:
         if self._perm is None:
             self._perm = self._cvxopt.matrix(nested_dissection(self.assembly, *self._dofs).tolist(), tc="i")
         options = self._cholmod.options
-        saved = options.get("nmethods", 0)
+        saved = options.get("nmethods")
         options["nmethods"] = 1  # the given ordering alone (with 0 CHOLMOD also tries AMD and keeps the least fill)
         try:
             return self._cholmod.symbolic(self._matrix, p=self._perm, uplo="L")
-        finally:
-            options["nmethods"] = saved
+        finally:  # the options as they were (the key absent if it was)
+            if saved is None:
+                del options["nmethods"]
+            else:
+                options["nmethods"] = saved
 
     def lower(self, values: np.ndarray) -> tuple[sp.csc_matrix, np.ndarray]:
         """Factorize ``values`` and return the factor itself: ``L`` ``(f, f)``, lower, CSC with sorted
