@@ -5,12 +5,13 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import warp as wp
+from warpsoft.kernels.linear import factors as kernels
 from warpsoft.kernels.linear.cg import DONE, NUM_SCALARS
 
 import warpsoft as ws
 from warpsoft.linear import WarpedFactor, WorldFactors
 from warpsoft.linear.assembly import CholmodFactor
-from warpsoft.linear.supernodal import Supernodal
+from warpsoft.linear.supernodal import Supernodal, sliced
 
 from .test_blocks import beam, four_designs, steps_as_alone
 
@@ -54,16 +55,46 @@ def test_the_level_programs_solve_with_the_factor_cholmod_made(ordering):
         analysis.programs(sp.csc_matrix(sp.tril(L.toarray() != 0, format="csc") * 1.0 + sp.eye(L.shape[0])))
 
 
-@pytest.mark.parametrize("tiled", [False, True])
-def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(tiled):
+@pytest.mark.parametrize("width", [1, 2, 3])
+def test_sliced_programs_solve_as_the_programs_do(width):
+    """A program laid out in slices of ``width`` rows (their entries interleaved, a level's last
+    slice padded), every other level kept contiguous, run task by task as the
+    kernels read it: the same solve, and each entry placed once."""
+    sim = bent([beam(cells=24)])
+    assembly = sim.solver.assembly
+    L, _ = CholmodFactor(assembly, ordering="nested_dissection").lower(assembly.values())
+    b = np.random.default_rng(4).standard_normal((assembly.size, 2))
+    for program in Supernodal(L).programs(L):
+        contiguous = np.arange(program.levels) % 2 == 1
+        s = sliced(program, width, contiguous)
+        assert len(np.unique(s.place)) == len(program.val) and s.place.max() < s.size
+        val, col = np.zeros(s.size), np.zeros(s.size, dtype=np.int64)
+        val[s.place], col[s.place] = program.val, program.col
+        out = np.zeros_like(b)
+        assert np.all(np.diff(s.level) >= 0) and np.array_equal(np.unique(s.row[s.row >= 0]), np.arange(assembly.size))
+        for t in range(len(s.row)):
+            if s.row[t] >= 0:
+                e0, e1, e2, step = *s.start[t], 1 if contiguous[s.level[t]] else width
+                out[s.row[t]] = val[e0:e1:step] @ b[col[e0:e1:step]] + val[e1:e2:step] @ out[col[e1:e2:step]]
+        assert np.abs(out - program.run(b)).max() < 1e-12 * np.abs(program.run(b)).max()
+        # a sliced level's tasks come in whole slices: every world's start at a multiple of width
+        for level in np.flatnonzero(~contiguous):
+            assert np.sum(s.level == level) % width == 0
+
+
+@pytest.mark.parametrize("layout", ["rows", "slices", "tiled"])
+def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout):
     """At rest the 1 and 3 MPa beams share a factor, the second's inverse scaled by 1/3; the
     product equals the host factor's. A world whose columns all converged is not touched. So
-    with every level through the tiled kernel that CUDA gives long rows (one lane a row here)."""
+    with each row's entries one after another, as the CPU lays them out; in slices of 4 rows,
+    as CUDA does (a warp of 32 there); and with every level through the tiled kernel that CUDA
+    gives long rows (one lane a row here)."""
     sim = ws.Simulator(ws.finalize([beam(), beam(3e6), beam(cells=16)]), solver="direct")
     sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
     pre = WorldFactors(sim.operator, 2, "float64")
-    if tiled:
+    if layout == "tiled":
         pre.lanes, pre.lanes_from = 1, 0.0
+    pre.width = 4 if layout == "slices" else 1
     scal = wp.zeros((2, 3, NUM_SCALARS), dtype=wp.float64)
     pre.watch(scal)
     pre.prepare()
@@ -139,3 +170,10 @@ def test_bad_input_is_named():
         CholmodFactor(sim.solver.assembly, ordering="amd")
     with pytest.raises(ValueError, match="auto, host, dense, blocks, factors, got 'factor'"):
         ws.Simulator(beam(), solver="pcg", preconditioner="factor")
+
+
+def test_each_level_kernel_is_its_own():
+    """The kernels of a step of 32 and of 32 lanes are cached apart (one key once served both:
+    the slices then ran through the lanes' kernel on CUDA, and met NaN)."""
+    assert kernels.level_kernel(2, wp.float32, 32) is not kernels.level_kernel_lanes(2, wp.float32, 32)
+    assert kernels.level_kernel(2, wp.float32, 32) is kernels.level_kernel(2, wp.float32, 32)

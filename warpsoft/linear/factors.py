@@ -12,6 +12,8 @@ lower (and the last CG iterations run only the slowest designs), so the factors 
 METIS's nested dissection, whose elimination trees are shallow: 11-16 levels each way for a
 sample of 128 of 1024 different Diamonds, against 30-53 with CHOLMOD's own ordering (AMD), for
 1 % more entries (H200, those 1024: P^-1 9.18 -> 7.20 ms, a step's graphs 154.9 -> 129.6 ms).
+In the levels of short rows (a thread a row) the entries lie in slices of 32 rows, interleaved,
+so that a warp reads side by side (P^-1 7.22 -> 6.70 ms for 3 % more entries, in padding).
 
 So ``P^-1 = Q blockdiag(s_w^-1 P_b^T L_b^-T L_b^-1 P_b) Q^T``: the same preconditioner as the
 dense inverse (the rest system's exact inverse, turned by the node rotations), at a fraction of
@@ -32,10 +34,11 @@ from ..launch import launch
 from .assembly import ORDERINGS, CholmodFactor, Pattern
 from .blocks import WorldGroups, _dense_entries
 from .operator import SystemOperator
-from .supernodal import Supernodal
+from .supernodal import Supernodal, sliced
 
 LANES = 32  # threads a row in the levels of long rows, on CUDA
 LANES_FROM = 128.0  # the mean entries a row from which a level takes them (docs/performance.md)
+WIDTH = 32  # rows a slice of the other levels' entries, on CUDA (a warp's threads read side by side)
 ORDERING = "nested_dissection"  # of the factors: levels, not fill, set the device's time (docs/performance.md)
 
 
@@ -81,11 +84,14 @@ class WorldFactors(WorldGroups):
             free[self.local_free[self.mesh_of.index(key)]] = True
             self.patterns[key] = Pattern(flat // (3 * nodes), flat % (3 * nodes), free)
         self.factors = self.analyses = self.orders = None  # per block, made at the first refresh
-        self.solves = None  # per direction: (tasks, col, val, [(first, count, mean entries a row) per level])
+        self.solves = None  # per direction: (tasks, col, val, [(first, count, long rows) per level])
         # levels whose rows average at least lanes_from entries take `lanes` threads a row
         # (level_kernel_lanes, a tiled launch); the others a thread a row. None: never (the CPU,
         # where a tiled launch runs one thread a block)
         self.lanes, self.lanes_from = (LANES, LANES_FROM) if d.is_cuda else (1, None)
+        # the other levels' rows, a thread each, in slices of `width` (1: each row's entries one
+        # after another, as the CPU's one thread reads them)
+        self.width = WIDTH if d.is_cuda else 1
         self.inv_scale = None
 
     @property
@@ -142,43 +148,56 @@ class WorldFactors(WorldGroups):
 
     def _lay_out(self, programs: list) -> None:
         """The programs of every block on the device: each block's entries once (their columns as
-        DOFs of its world), each world's tasks (rows as the model's DOFs), sorted by level. At a
-        later refresh only the entries' values change, in place (a captured graph holds them)."""
+        DOFs of its world), sliced for ``width`` threads (:func:`~warpsoft.linear.supernodal.sliced`)
+        but in the levels of long rows; each world's tasks (rows as the model's DOFs), sorted by
+        level. At a later refresh only the entries' values change, in place (a captured graph
+        holds them)."""
         m, d = self.op.model, self.op.model.device
         npd = np.float64 if self.dtype == wp.float64 else np.float32
         # each factor place's DOF in its world's own numbering
         dof = [self.patterns[self.mesh_of[w]].free[self.orders[b]] for b, w in enumerate(self.first_world)]
-        if self.solves is not None:
-            for direction, solve in enumerate(self.solves):
-                solve[2].assign(np.concatenate([p[direction].val for p in programs]).astype(npd))
-            return
-        self.inv_scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
+        worlds = np.bincount(self.block_of, minlength=len(programs))
         solves = []
         for direction in range(2):
             progs = [p[direction] for p in programs]
-            offset = np.concatenate([[0], np.cumsum([len(p.val) for p in progs])])
-            col = np.concatenate([dof[b][p.col] for b, p in enumerate(progs)])
-            val = np.concatenate([p.val for p in progs]).astype(npd)
+            # a level's rows, and their entries, over every world: long rows take several threads each
+            depth = max(p.levels for p in progs)
+            counts, length = np.zeros(depth), np.zeros(depth)
+            for p, n in zip(progs, worlds, strict=True):
+                counts[:p.levels] += n * np.bincount(p.level, minlength=p.levels)
+                length[:p.levels] += n * np.bincount(p.level, weights=p.start[:, 2] - p.start[:, 0], minlength=p.levels)
+            long = (length >= self.lanes_from * counts) if self.lanes_from is not None else np.zeros(depth, dtype=bool)
+            layouts = [sliced(p, self.width, long) for p in progs]
+            offset = np.concatenate([[0], np.cumsum([s.size for s in layouts])])
+            val = np.zeros(offset[-1], dtype=npd)
+            for p, s, o in zip(progs, layouts, offset[:-1], strict=True):
+                val[o + s.place] = p.val
+            if self.solves is not None:
+                self.solves[direction][2].assign(val)
+                continue
+            col = np.zeros(offset[-1], dtype=np.int32)
+            for b, (p, s, o) in enumerate(zip(progs, layouts, offset[:-1], strict=True)):
+                col[o + s.place] = dof[b][p.col]
             tasks, levels = [], []
             for w in range(m.num_worlds):
                 b = int(self.block_of[w])
-                p = progs[b]
-                tasks.append(np.column_stack([3 * int(m.world_node_start[w]) + dof[b][p.row], p.start + offset[b]]))
-                levels.append(p.level)
+                s = layouts[b]
+                row = np.where(s.row >= 0, 3 * int(m.world_node_start[w]) + dof[b][np.maximum(s.row, 0)], -1)
+                tasks.append(np.column_stack([row, s.start + offset[b]]))
+                levels.append(s.level)
             tasks, levels = np.concatenate(tasks), np.concatenate(levels)
-            order = np.argsort(levels, kind="stable")  # by level, then world, then row
-            counts = np.bincount(levels, minlength=int(levels.max()) + 1)
-            firsts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-            length = np.bincount(levels, weights=tasks[:, 3] - tasks[:, 1], minlength=len(counts))
+            order = np.argsort(levels, kind="stable")  # by level, then world, then slot
+            count = np.bincount(levels, minlength=depth)
+            firsts = np.concatenate([[0], np.cumsum(count)[:-1]])
             if tasks.max() >= 2 ** 31:
                 raise ValueError(f"WorldFactors: {tasks.max()} entries pass the 2^31 a Warp index holds; "
                                  "step fewer designs at a time")
             solves.append((wp.array(tasks[order].astype(np.int32), dtype=wp.vec4i, device=d),
-                           wp.array(col.astype(np.int32), dtype=wp.int32, device=d),
-                           wp.array(val, dtype=self.dtype, device=d),
-                           [(int(f), int(c), float(n / c)) for f, c, n in zip(firsts, counts, length, strict=True)
-                            if c]))
-        self.solves = solves
+                           wp.array(col, dtype=wp.int32, device=d), wp.array(val, dtype=self.dtype, device=d),
+                           [(int(f), int(c), bool(lg)) for f, c, lg in zip(firsts, count, long, strict=True) if c]))
+        if self.solves is None:
+            self.solves = solves
+            self.inv_scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
 
     def apply(self, r: wp.array, z: wp.array) -> None:
         """``z = Q blockdiag(s_w^-1 A_b^-1) Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns``;
@@ -187,12 +206,12 @@ class WorldFactors(WorldGroups):
         k = r.shape[0]
         launch(kernels.rotate_in_scaled(self.dtype), r.shape,
                inputs=[r, self.q_rot, m.mask, m.node_world, self.inv_scale], outputs=[self.u], device=d)
-        level = kernels.level_kernel(k, self.dtype)
+        level = kernels.level_kernel(k, self.dtype, self.width)
         lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes)
         for (tasks, col, val, levels), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x), strict=True):
-            for first, count, length in levels:
+            for first, count, long in levels:
                 inputs = [tasks, first, col, val, m.node_world, self.world_row, self._done, inp]
-                if lanes is not None and length >= self.lanes_from:  # long rows: a block of threads each
+                if long:  # long rows: a block of threads each
                     wp.launch_tiled(lanes, dim=[count], inputs=inputs, outputs=[out], block_dim=self.lanes, device=d)
                 else:
                     launch(level, count, inputs=inputs, outputs=[out], device=d)

@@ -186,3 +186,68 @@ def _program(parts: list, level: np.ndarray) -> Program:
     ends = np.cumsum(count.sum(axis=1))
     start = np.stack([ends - count.sum(axis=1), ends - count[:, 1], ends], axis=1)
     return Program(order, level[order], start, col[by].astype(np.int64), val[by])
+
+
+@dataclass
+class Sliced:
+    """A program's entries laid out for ``width`` threads reading side by side (sliced ELLPACK):
+    the rows of each level, longest first, are cut into slices of ``width`` (the last of a level
+    padded with empty rows); the ``j``-th entry of a slice's ``l``-th row lies at ``base + l +
+    width j``, so that a warp's threads, a row each, read neighbouring numbers at each step. The
+    rows of the levels marked ``contiguous`` keep their entries one after another (a level whose
+    long rows are read by several threads each).
+
+    Attributes:
+        row: ``(tasks,)`` the position each task writes, -1 for the padding that fills a level's last
+            slice (so that every world's slices start at a multiple of ``width``).
+        level: ``(tasks,)`` each task's level, sorted.
+        start: ``(tasks, 3)`` the task's first input entry, first output entry, end; its entries
+            are ``width`` apart (1 in a contiguous level).
+        place: ``(entries,)`` where each of the program's entries goes.
+        size: the laid-out entries, padding included.
+    """
+
+    row: np.ndarray
+    level: np.ndarray
+    start: np.ndarray
+    place: np.ndarray
+    size: int
+
+
+def sliced(p: Program, width: int, contiguous: np.ndarray) -> Sliced:
+    """``p``'s entries in slices of ``width`` rows (``width = 1``: as they are), but for the levels
+    where ``contiguous[level]``."""
+    length = p.start[:, 2] - p.start[:, 0]
+    together = contiguous[p.level] | (width == 1)
+    order = np.lexsort((np.where(together, 0, -length), p.level))  # by level, then longest first
+    level, length, together = p.level[order], length[order], together[order]
+    counts = np.bincount(level, minlength=p.levels)
+    firsts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    # each sliced level padded to whole slices: the rows' places among the tasks
+    padded = np.where(contiguous[:len(counts)] | (width == 1), counts, -(-counts // width) * width)
+    pad_first = np.concatenate([[0], np.cumsum(padded)[:-1]])
+    rank = np.arange(len(order)) - firsts[level]  # within its level
+    slot = pad_first[level] + rank
+    lane = np.where(together, 0, rank % width)
+    # a slice's room is width times its first (longest) row (the kernels read with a constant
+    # step: a level's last slice keeps room for the padding); a contiguous row's, its length
+    step = np.where(together, 1, width)
+    head = together | (lane == 0)
+    room = step * length
+    base = np.zeros(len(order), dtype=np.int64)
+    base[head] = np.concatenate([[0], np.cumsum(room[head])[:-1]])
+    base = np.maximum.accumulate(np.where(head, base, 0)) + lane  # a slice's rows: its head's base
+    tasks = int(padded.sum())
+    row = np.full(tasks, -1, dtype=np.int64)
+    row[slot] = p.row[order]
+    start = np.zeros((tasks, 3), dtype=np.int64)
+    parts = (p.start[order] - p.start[order][:, :1])  # 0, inputs, inputs + outputs
+    start[slot] = base[:, None] + step[:, None] * parts
+    levels = np.repeat(np.arange(len(counts)), padded)
+    # entry e of row r (its j-th) goes to base_r + step_r j
+    first_entry = p.start[order][:, 0]
+    j = np.arange(int(length.sum())) - np.repeat(np.cumsum(length) - length, length)
+    place = np.empty(len(p.val), dtype=np.int64)
+    place[np.repeat(first_entry, length) + j] = np.repeat(base, length) + np.repeat(step, length) * j
+    size = int(room[head].sum())
+    return Sliced(row, levels, start, place, size)
