@@ -121,7 +121,9 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout):
 def test_each_world_steps_as_alone_and_as_with_dense_blocks():
     """Four designs stepped with the factors: each world as it steps alone (its positions and
     its CG iterations), and as with the dense inverses per world (the same preconditioner,
-    another way to apply it: one iteration apart at most)."""
+    another way to apply it, rounded otherwise: its first step's solves take 83-113 iterations,
+    whose count the rounding moves by up to 2 (one BLAS thread or two for the factors' products
+    gave 109 or 110 against the dense inverse's 111); 2 apart at most)."""
     scenes = four_designs()
     runs = {}
     for pre in ("factors", "blocks"):
@@ -134,7 +136,7 @@ def test_each_world_steps_as_alone_and_as_with_dense_blocks():
     dense_sim, dense = runs["blocks"]
     for w, q in enumerate(alone):
         its = np.subtract([s.worlds[w].cg_iterations for s in dense], [s.worlds[w].cg_iterations for s in together])
-        assert np.abs(its).max() <= 1
+        assert np.abs(its).max() <= 2
         moved = np.abs(q - sim.model.rest_np[sim.model.world_nodes(w)]).max()
         assert np.abs(dense_sim.positions(w) - q).max() < 1e-8 * moved
 
@@ -177,3 +179,52 @@ def test_each_level_kernel_is_its_own():
     the slices then ran through the lanes' kernel on CUDA, and met NaN)."""
     assert kernels.level_kernel(2, wp.float32, 32) is not kernels.level_kernel_lanes(2, wp.float32, 32)
     assert kernels.level_kernel(2, wp.float32, 32) is kernels.level_kernel(2, wp.float32, 32)
+
+
+def _product(scenes, workers):
+    """The factors' product of one random ``r`` for the designs linearized at rest, with
+    ``workers`` processes factorizing; and the preconditioner."""
+    sim = ws.Simulator(ws.finalize(scenes), solver="direct")
+    sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))
+    pre = WorldFactors(sim.operator, 2, "float64")
+    pre.workers = workers
+    pre.watch(wp.zeros((2, sim.model.num_worlds, NUM_SCALARS), dtype=wp.float64))
+    pre.prepare()
+    r = wp.array(np.random.default_rng(2).standard_normal((2, sim.model.num_nodes, 3)), dtype=wp.vec3d)
+    z = wp.zeros_like(r)
+    pre.apply(r, z)
+    return z.numpy(), pre
+
+
+def test_worker_processes_factorize_as_the_host_does(monkeypatch):
+    """Three different meshes, their blocks factorized by two spawned processes: the same
+    orderings and the same product, to the bit, as factorized here one after another."""
+    from warpsoft.linear import factors
+
+    monkeypatch.setattr(factors, "POOL_FROM", 2)
+    pools = []
+    real = factors.ProcessPoolExecutor
+    monkeypatch.setattr(factors, "ProcessPoolExecutor", lambda *a, **k: pools.append(a) or real(*a, **k))
+    scenes = [beam(cells=c) for c in (12, 16, 20)]
+    here, pre_here = _product(scenes, 1)
+    assert not pools
+    there, pre_there = _product(scenes, 2)
+    assert pools == [(2,)]
+    assert np.array_equal(here, there) and np.abs(here).max() > 0
+    assert all(np.array_equal(a, b) for a, b in zip(pre_here.orders, pre_there.orders, strict=True))
+
+
+def test_a_block_not_positive_definite_names_its_world(monkeypatch):
+    """A block whose factorization fails is reported with the world (and scene) it serves."""
+    from warpsoft.linear import factors
+
+    real = factors.factor_programs
+
+    def failing(sparsity, values, ordering):
+        if sparsity.size == 3 * 17 * 3 * 3 - 27:  # the 16-cell beam's free DOFs
+            raise ArithmeticError("3")
+        return real(sparsity, values, ordering)
+
+    monkeypatch.setattr(factors, "factor_programs", failing)
+    with pytest.raises(ws.SceneError, match="WorldFactors: world 1 \\(scene 'beam'\\): its system is not positive"):
+        _product([beam(cells=12), beam(cells=16)], 1)

@@ -14,6 +14,8 @@ per 5 right-hand sides; QDLDL 10.2 ms per refactorization; cholespy (no refactor
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 import warp as wp
@@ -28,6 +30,19 @@ SOLVE_ENTRIES = 1 << 24
 # the most numbers of the dense block in which :meth:`CholmodFactor.gram` multiplies Z's rows (128 MB)
 GRAM_DENSE_ENTRIES = 1 << 24
 ORDERINGS = ("cholmod", "nested_dissection")  # CholmodFactor's fill-reducing orderings
+
+
+@dataclass
+class Sparsity:
+    """The lower triangle's CSC pattern alone over ``size`` free DOFs: ``indptr`` ``(size + 1,)``,
+    ``indices`` and ``columns`` ``(nnz,)``, as :class:`Pattern` has them. It is all a factor's
+    analysis reads (:class:`CholmodFactor`, :func:`nested_dissection`), and light to send to a
+    worker process."""
+
+    size: int
+    indptr: np.ndarray
+    indices: np.ndarray
+    columns: np.ndarray
 
 
 class Pattern:
@@ -63,6 +78,10 @@ class Pattern:
         self.nnz = len(unique)
         self.diagonal = self.indptr[:-1]  # the first entry of each lower column is its diagonal
         assert np.array_equal(self.indices[self.diagonal], np.arange(self.size))
+
+    def sparsity(self) -> Sparsity:
+        """The CSC pattern alone."""
+        return Sparsity(self.size, self.indptr, self.indices, self.columns)
 
     def lower_values(self, entries: np.ndarray, diagonal: np.ndarray | None = None) -> np.ndarray:
         """The ``nnz`` values of the lower triangle: the ``entries`` summed into their slots, plus
@@ -105,7 +124,7 @@ class Assembly(Pattern):
         return (lower + lower.T - sp.diags(lower.diagonal())).tocsc()
 
 
-def nested_dissection(pattern: Pattern, lo: int = 0, hi: int | None = None) -> np.ndarray:
+def nested_dissection(pattern: Pattern | Sparsity, lo: int = 0, hi: int | None = None) -> np.ndarray:
     """METIS's nested dissection (pymetis) of the free DOFs ``lo:hi`` of ``pattern``'s graph:
     ``(hi - lo,)``, the DOF (counted from ``lo``) at each place of the ordering. It splits the
     graph by small separators, recursively, so the elimination tree is shallow: seven Diamonds'
@@ -131,8 +150,9 @@ class CholmodFactor:
 
     name = "cholmod"
 
-    def __init__(self, assembly: Pattern, dofs: tuple[int, int] | None = None, ordering: str = "cholmod"):
-        """``assembly``: the pattern (an :class:`Assembly`, or any :class:`Pattern`). ``dofs``:
+    def __init__(self, assembly: Pattern | Sparsity, dofs: tuple[int, int] | None = None,
+                 ordering: str = "cholmod"):
+        """``assembly``: the pattern (an :class:`Assembly`, any :class:`Pattern`, or its :class:`Sparsity`). ``dofs``:
         ``(lo, hi)``, the factor of ``A`` over the free DOFs ``lo:hi`` alone, a diagonal block of
         ``A`` (a world's, see :class:`WorldsCholmod`); its solves and values are then of those DOFs.
         ``ordering``: "cholmod" (CHOLMOD picks the ordering of least fill: the host's solves) or

@@ -23,23 +23,41 @@ for many the factors (bandwidth-bound).
 
 from __future__ import annotations
 
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+from functools import partial
+
 import numpy as np
 import warp as wp
+from threadpoolctl import threadpool_limits
 
 from warpsoft.kernels.linear import factors as kernels
 from warpsoft.kernels.linear import warped as rotations
 
 from ..errors import SceneError
 from ..launch import launch
-from .assembly import ORDERINGS, CholmodFactor, Pattern
+from .assembly import ORDERINGS, CholmodFactor, Pattern, Sparsity
 from .blocks import WorldGroups, _dense_entries
 from .operator import SystemOperator
-from .supernodal import Supernodal, sliced
+from .supernodal import Program, Supernodal, sliced
 
 LANES = 32  # threads a row in the levels of long rows, on CUDA
 LANES_FROM = 128.0  # the mean entries a row from which a level takes them (docs/performance.md)
 WIDTH = 32  # rows a slice of the other levels' entries, on CUDA (a warp's threads read side by side)
 ORDERING = "nested_dissection"  # of the factors: levels, not fill, set the device's time (docs/performance.md)
+WORKERS = None  # processes that factorize the blocks (None: one a CPU core; where processes fork)
+POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
+
+
+def factor_programs(sparsity: Sparsity, values: np.ndarray,
+                    ordering: str) -> tuple[np.ndarray, tuple[Program, Program]]:
+    """One block: CHOLMOD's factor of the system ``values`` (its lower triangle's, on
+    ``sparsity``) in ``ordering``, read out as the forward and backward level programs; and the
+    factor's ``order`` (the DOF at each of its places). A function of its arguments alone, so that
+    worker processes can run it; raises ArithmeticError when the system is not positive definite."""
+    L, order = CholmodFactor(sparsity, ordering=ordering).lower(values)
+    return order, Supernodal(L).programs(L)
 
 
 class WorldFactors(WorldGroups):
@@ -57,7 +75,9 @@ class WorldFactors(WorldGroups):
     Attributes: ``blocks`` (distinct factors), ``block_of`` ``(worlds,)``, ``levels`` (the forward
     and backward solves' launches), ``entries`` (the programs' numbers, all blocks), ``refreshes``,
     ``memory_bytes``, ``lanes`` and ``lanes_from`` (the threads a row of the levels whose rows
-    average that many entries; H200, 1024 different Diamonds: P^-1 26.6 -> 9.8 ms with 32 from 128).
+    average that many entries; H200, 1024 different Diamonds: P^-1 26.6 -> 9.8 ms with 32 from 128),
+    ``width`` (the slices' rows in the other levels), ``workers`` (the processes that factorize
+    the blocks, :data:`WORKERS`; the GPU machine's 16 for 256 different Diamonds: 49.2 -> 15.2 s).
     """
 
     capturable = True
@@ -83,7 +103,9 @@ class WorldFactors(WorldGroups):
             free = np.zeros(3 * nodes, dtype=bool)
             free[self.local_free[self.mesh_of.index(key)]] = True
             self.patterns[key] = Pattern(flat // (3 * nodes), flat % (3 * nodes), free)
-        self.factors = self.analyses = self.orders = None  # per block, made at the first refresh
+        self.sparsity = {key: pattern.sparsity() for key, pattern in self.patterns.items()}
+        self.orders = []  # per block, the factor's ordering (the DOF at each place), made at the first refresh
+        self.workers = WORKERS
         self.solves = None  # per direction: (tasks, col, val, [(first, count, long rows) per level])
         # levels whose rows average at least lanes_from entries take `lanes` threads a row
         # (level_kernel_lanes, a tiled launch); the others a thread a row. None: never (the CPU,
@@ -120,31 +142,48 @@ class WorldFactors(WorldGroups):
 
     def refresh(self) -> None:
         """Factorize each block at the current rotations (its first world's state) with CHOLMOD,
-        turn the factors into level programs, and take the rotations as the new frame."""
+        turn the factors into level programs, and take the rotations as the new frame. From
+        :data:`POOL_FROM` blocks, ``workers`` processes do it side by side."""
         m, d = self.op.model, self.op.model.device
         blocks = wp.zeros(16 * m.num_elements, dtype=wp.mat33d, device=d)  # made here, freed after
         self.op.elastic.blocks(self.op.rot, blocks)
         first = self.block_of is None
         if first:
             self._group(blocks)
-            self.factors = [CholmodFactor(self.patterns[self.mesh_of[w]], ordering=self.ordering)
-                            for w in self.first_world]
-            self.analyses, self.orders = [], []
+        jobs = ((self.sparsity[self.mesh_of[w]], self._system(blocks, w), self.ordering) for w in self.first_world)
+        workers = self.workers or os.cpu_count() or 1
+        # one BLAS thread for the blocks' small dense products: the workers, forked inside, keep
+        # the limit (16 processes of 16 OpenBLAS threads each would oversubscribe 16 cores)
+        with threadpool_limits(1):
+            if workers > 1 and len(self.first_world) >= POOL_FROM and "fork" in multiprocessing.get_all_start_methods():
+                # forked (Linux): the workers run CHOLMOD, METIS and numpy on what they are sent, never
+                # Warp or CUDA. A spawned one would first run the user's script again, up to here,
+                # wherever it lacks the `if __name__ == "__main__"` guard
+                with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+                    futures = [pool.submit(factor_programs, *job) for job in jobs]
+                    self._take(m, first, [(w, f.result) for w, f in zip(self.first_world, futures, strict=True)])
+            else:
+                self._take(m, first, [(w, partial(factor_programs, *job))
+                                      for w, job in zip(self.first_world, jobs, strict=True)])
+        self.take_frame()
+
+    def _take(self, m, first: bool, results: list) -> None:
+        """Lay out the blocks' programs, ``results`` ``[(world, call)]`` in block order, each call
+        returning :func:`factor_programs`'s; a system not positive definite names its world.
+        ``m``: the model."""
         programs = []
-        for b, w in enumerate(self.first_world):
+        for b, (w, result) in enumerate(results):
             try:
-                L, order = self.factors[b].lower(self._system(blocks, w))
+                order, program = result()
             except ArithmeticError as e:
                 raise SceneError(f"WorldFactors: world {w} (scene '{m.scenes[w].name}'): its system is not "
                                  f"positive definite ({e}); is the body held?") from e
             if first:
-                self.analyses.append(Supernodal(L))
                 self.orders.append(order)
             elif not np.array_equal(order, self.orders[b]):
                 raise RuntimeError(f"WorldFactors: block {b}'s ordering changed between factorizations")
-            programs.append(self.analyses[b].programs(L))
+            programs.append(program)
         self._lay_out(programs)
-        self.take_frame()
 
     def _lay_out(self, programs: list) -> None:
         """The programs of every block on the device: each block's entries once (their columns as
