@@ -197,7 +197,7 @@ def _product(scenes, workers):
 
 
 def test_worker_processes_factorize_as_the_host_does(monkeypatch):
-    """Three different meshes, their blocks factorized by two spawned processes: the same
+    """Three different meshes, their blocks factorized by two forked processes: the same
     orderings and the same product, to the bit, as factorized here one after another."""
     from warpsoft.linear import factors
 
