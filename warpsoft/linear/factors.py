@@ -151,7 +151,7 @@ class WorldFactors(WorldGroups):
         if first:
             self._group(blocks)
         jobs = ((self.sparsity[self.mesh_of[w]], self._system(blocks, w), self.ordering) for w in self.first_world)
-        workers = self.workers or os.cpu_count() or 1
+        workers = min(self.workers or os.cpu_count() or 1, len(self.first_world))
         # one BLAS thread for the blocks' small dense products: the workers, forked inside, keep
         # the limit (16 processes of 16 OpenBLAS threads each would oversubscribe 16 cores)
         with threadpool_limits(1):
