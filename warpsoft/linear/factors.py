@@ -46,7 +46,7 @@ LANES = 32  # threads a row in the levels of long rows, on CUDA
 LANES_FROM = 128.0  # the mean entries a row from which a level takes them (docs/performance.md)
 WIDTH = 32  # rows a slice of the other levels' entries, on CUDA (a warp's threads read side by side)
 ORDERING = "nested_dissection"  # of the factors: levels, not fill, set the device's time (docs/performance.md)
-WORKERS = None  # processes that factorize the blocks (None: one a CPU core; where processes fork)
+WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
 
 
@@ -151,7 +151,8 @@ class WorldFactors(WorldGroups):
         if first:
             self._group(blocks)
         jobs = ((self.sparsity[self.mesh_of[w]], self._system(blocks, w), self.ordering) for w in self.first_world)
-        workers = min(self.workers or os.cpu_count() or 1, len(self.first_world))
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        workers = min(self.workers or cores, len(self.first_world))
         # one BLAS thread for the blocks' small dense products: the workers, forked inside, keep
         # the limit (16 processes of 16 OpenBLAS threads each would oversubscribe 16 cores)
         with threadpool_limits(1):
