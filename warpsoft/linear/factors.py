@@ -103,7 +103,6 @@ class WorldFactors(WorldGroups):
             free = np.zeros(3 * nodes, dtype=bool)
             free[self.local_free[self.mesh_of.index(key)]] = True
             self.patterns[key] = Pattern(flat // (3 * nodes), flat % (3 * nodes), free)
-        self.sparsity = {key: pattern.sparsity() for key, pattern in self.patterns.items()}
         self.orders = []  # per block, the factor's ordering (the DOF at each place), made at the first refresh
         self.workers = WORKERS
         self.solves = None  # per direction: (tasks, col, val, [(first, count, long rows) per level])
@@ -150,7 +149,8 @@ class WorldFactors(WorldGroups):
         first = self.block_of is None
         if first:
             self._group(blocks)
-        jobs = ((self.sparsity[self.mesh_of[w]], self._system(blocks, w), self.ordering) for w in self.first_world)
+        jobs = ((self.patterns[self.mesh_of[w]].sparsity(), self._system(blocks, w), self.ordering)
+                for w in self.first_world)
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
         workers = min(self.workers or cores, len(self.first_world))
         # one BLAS thread for the blocks' small dense products: the workers, forked inside, keep
