@@ -126,3 +126,34 @@ def test_a_preconditioner_due_for_a_refresh_is_refreshed_before_the_solve(scene_
     sim.solver.precond._stale = True  # as observe() leaves it when the iterations grew
     stats = sim.step()
     assert sim.solver.precond.refreshes == refreshes + 1 and stats.cg_iterations == 1
+
+
+def test_each_world_keeps_or_makes_its_factorization_as_it_would_alone(scene_module):
+    """Three swinging cantilevers of different stiffness as one model, with ``factor_reuse``: each
+    world decides on its own history whether to keep its factorization, so the batch makes exactly
+    the factorizations the three make alone (their counts differ) and each world swings as it does
+    alone. A step that kept one ends within ``factor_reuse`` or iterates on a fresh one."""
+    def swing(young):
+        return scene_module("scenes/validation/cantilever.py").build(gravity=9.81, static=False, young_modulus=young,
+                                                                      mesh_size=0.005)
+
+    moduli, steps, reuse = (1.5e5, 3e5, 1e6), 40, 0.01
+    alone = []
+    for young in moduli:
+        sim = ws.Simulator(swing(young), solver="direct", factor_reuse=reuse)
+        history = [sim.step() for _ in range(steps)]
+        alone.append((sim.probe_positions()["tip"], history))
+    counts = [sum(s.factorizations for s in history) for _, history in alone]
+    assert len(set(counts)) == 3
+    assert all(any(s.factorizations < s.newton_iterations for s in history) for _, history in alone)  # each kept one
+    for _, history in alone:
+        kept = [s for s in history if s.factorizations < s.newton_iterations]
+        assert all(s.newton_residual <= reuse for s in kept if s.newton_iterations == 1)
+    assert any(s.newton_iterations == 2 and s.factorizations == 1 for _, history in alone for s in history)
+
+    batch = ws.Simulator(ws.finalize([swing(young) for young in moduli], "cpu"), solver="direct", factor_reuse=reuse)
+    together = [batch.step() for _ in range(steps)]
+    assert sum(s.factorizations for s in together) == sum(counts)
+    for w, (tip, history) in enumerate(alone):
+        assert np.abs(batch.probe_positions(world=w)["tip"] - tip).max() < 1e-12
+        assert [s.newton_iterations for s in history] == [s.worlds[w].newton_iterations for s in together]

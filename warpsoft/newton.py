@@ -18,7 +18,8 @@ the finger at ``dt = 0.5 s`` flipped between two shapes every step), the step it
   slowly converging iteration shrinks ``e``): the error left is ``|eta|`` times the size of ``e``
   relative to the step's first correction (in the energy norm ``sqrt(e . A e)``; at least that
   of a strain of ``FLOOR_STRAIN`` throughout the body, so that a step that hardly moves is not
-  iterated for nothing). A world is done when a full step leaves an error ``<= tolerance``;
+  iterated for nothing). A world is done when a full step leaves an error ``<= tolerance``
+  (``<= factor_reuse`` where it solved on an earlier linearization's factorization: ``limit``);
   its later iterations leave it in place (``alpha = 0``), its solve column 0;
 - line search: a world that overshot (``eta < -1/2``: its energy rises again before the full
   step) retries with ``alpha`` where the slope, interpolated linearly, vanishes;
@@ -112,6 +113,9 @@ class Newton:
                                       device=d)
             self.delta_start = wp.zeros(rows.num_rows, dtype=wp.float64, device=d)  # rows at the step's start
         self.row_forces = wp.zeros(n, dtype=wp.vec3d, device=d)  # H_f^T lambda (N): 0 without force rows
+        # the error each world's full step must leave to be done: the tolerance, or less in a step
+        # that solves on an earlier linearization's factorization (set by the step: factor_reuse)
+        self.limit = np.full(worlds, self.tolerance)
         self._reset_host()
 
     # ---- device work (captured in the step's graphs) --------------------------------------
@@ -202,6 +206,7 @@ class Newton:
         self.error = np.zeros(worlds)  # |eta| |e|_A / |e_0|_A: what is left, relative to the step's first correction
         self.energy0 = np.zeros(worlds)  # e . A e of each world's first correction (at least the floor)
         self.trials_left = np.full(worlds, self.backtracks)
+        self.retried = np.zeros(worlds, dtype=bool)  # the worlds that took a shortened step in this step
         self.iterations = np.zeros(worlds, dtype=int)
         self.trials, self.accepted = 0, 0
 
@@ -236,6 +241,7 @@ class Newton:
             # the slope, linear between g0 at 0 and g at alpha, vanishes at alpha / (1 - eta)
             alpha[over] = np.maximum(alpha[over] / (1.0 - eta[over]), 0.1 * alpha[over])
             self.trials_left[over] -= 1
+            self.retried[over] = True
             self.trials += 1
             self._set_alpha(alpha)
             return True
@@ -249,7 +255,7 @@ class Newton:
         """After an iteration was accepted: whether another is due (some world's full step left an
         error above the tolerance, or its step was shortened, and the cap is not reached); if so,
         the done worlds stay where they are."""
-        self.done |= (self.alpha_host == 1.0) & (self.error <= self.tolerance)
+        self.done |= (self.alpha_host == 1.0) & (self.error <= self.limit)
         if self.accepted >= self.max_iterations or self.done.all():
             return False
         self.trials_left[:] = self.backtracks

@@ -83,7 +83,8 @@ class StepStats:
     actuators rode along, else 0. ``newton_iterations`` is the most linearizations a world
     needed, ``newton_residual`` the largest final relative residual of a world, and
     ``line_searches`` the shortened steps tried; ``factorizations`` counts the direct solver's
-    numeric factorizations in the step (fewer than its linearizations with ``factor_reuse``). ``worlds``
+    numeric factorizations in the step, a world's block counting one (fewer than its worlds'
+    linearizations with ``factor_reuse``). ``worlds``
     holds each world's rows; with one world, its fields read as attributes of the step too
     (``stats.actuator_delta`` and so on).
     """

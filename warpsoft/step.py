@@ -75,6 +75,7 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     record_newton(sim, stats)
     if factorizations is not None:
         stats.factorizations = sim.solver.factorizations - factorizations
+        sim.solver.keep[:] = False  # (a solve between steps takes the linearization made last)
     watch.health(sim, stats, host)
     watch.inverted_elements(sim, stats, host)
     if rows is not None:
@@ -95,8 +96,8 @@ def iterate(sim: Simulator, stats: StepStats, actuated: bool, host_resolve: bool
             first: bool) -> dict[str, np.ndarray]:
     """One Newton iteration (the first also starts the step), read back in one transfer."""
     captured = capturable(sim)
-    if not first and sim.factor_reuse:  # the step iterates: on the tangent of where it is
-        sim.solver.keep = False
+    if not first and sim.factor_reuse:  # the step iterates: on the tangent of where it is (the worlds
+        sim.solver.keep[:] = sim.newton.done  # done are held: their factors serve no solve of this step)
     solve = [("linearize", lambda: begin(sim, actuated))] if first else []
     solve.append(("free_solve", lambda: free_solve(sim, actuated, first, captured)))
     if actuated:
@@ -157,17 +158,22 @@ def replay(sim: Simulator, stats: StepStats, name: str, work) -> None:
 
 
 def reuse_factor(sim: Simulator) -> int | None:
-    """Whether this step may keep the direct solver's factorization of an earlier linearization
-    (``factor_reuse``): when the step before converged in its first iteration with a nonlinear
-    residual at most ``factor_reuse``. That residual measures the tangent's error along the step
-    (see :mod:`warpsoft.newton`), a stale factorization's with the rest, so the factorization is
-    made again as soon as it drifts. Returns the solver's factorization count (None: a solver
-    without one)."""
+    """Which worlds may keep the direct solver's factorization of an earlier linearization in this
+    step (``factor_reuse``): those whose step before converged in its first iteration, without a
+    line search, with a nonlinear residual at most ``factor_reuse``. That residual measures the
+    tangent's error along the step (see :mod:`warpsoft.newton`), a stale factorization's with the
+    rest, so a world's factorization is made again as soon as it drifts; and a world that keeps
+    it must end this step within ``factor_reuse`` too, or iterate on a fresh one (Newton's
+    ``limit``). Each world decides on its own history, as it would alone. Returns the solver's
+    factorization count (None: a solver without one)."""
     solver, newton = sim.solver, sim.newton
     if not hasattr(solver, "factorizations"):
         return None
-    solver.keep = bool(sim.factor_reuse and sim.step_index > 0 and newton.accepted == 1
-                       and not newton.trials and newton.error.max() <= sim.factor_reuse)
+    keep = np.zeros(sim.model.num_worlds, dtype=bool)
+    if sim.factor_reuse and sim.step_index > 0:
+        keep = (newton.iterations == 1) & ~newton.retried & (newton.error <= sim.factor_reuse)
+    solver.keep[:] = keep
+    newton.limit[:] = np.where(keep, min(newton.tolerance, sim.factor_reuse), newton.tolerance)
     return solver.factorizations
 
 
@@ -190,7 +196,8 @@ def begin(sim: Simulator, actuated: bool) -> None:
 
     def again() -> None:  # the state changed since the last step linearized it
         if sim.factor_reuse:  # (by a jump the last factorization knows nothing of)
-            sim.solver.keep = False
+            sim.solver.keep[:] = False
+            sim.newton.limit[:] = sim.newton.tolerance
         linearize(sim, q)
         if actuated:
             sim.rows.evaluate(q, sim.state)

@@ -305,14 +305,19 @@ class WorldsCholmod:
         self.assembly = assembly
         model = assembly.op.model
         starts = np.searchsorted(assembly.free, 3 * np.asarray(model.world_node_start, dtype=np.int64))
-        self.ranges = [(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:], strict=True) if b > a]
+        held = [w for w in range(model.num_worlds) if starts[w + 1] > starts[w]]  # worlds with free DOFs
+        self.worlds = np.array(held, dtype=np.int64)  # the world of each part
+        self.ranges = [(int(starts[w]), int(starts[w + 1])) for w in held]
         self.parts = [CholmodFactor(assembly, r) for r in self.ranges]
         self.size = assembly.size
 
-    def factorize(self, values: np.ndarray) -> None:
-        """Each world's block refactorized; raises ArithmeticError when one is not positive definite."""
-        for part in self.parts:
-            part.factorize(values[part.values_slice])
+    def factorize(self, values: np.ndarray, worlds: np.ndarray | None = None) -> None:
+        """Each world's block refactorized (those set in ``worlds``, ``(num_worlds,)`` bool, if
+        given; the others keep their factors); raises ArithmeticError when one is not positive
+        definite."""
+        for w, part in zip(self.worlds, self.parts, strict=True):
+            if worlds is None or worlds[w]:
+                part.factorize(values[part.values_slice])
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^-1 b`` for ``b`` of shape ``(f, k)``, world by world."""

@@ -17,20 +17,24 @@ from .pcg import SolveResult
 class SparseDirect:
     """Factorize at each linearization (the pattern analysed once), solve all columns at once.
 
-    The factorization is made when a solve first needs it after :meth:`prepare`. While
-    :attr:`keep` is set (the step allows it, see ``factor_reuse`` in :mod:`warpsoft.step`), a solve
-    uses the factorization it has, of an earlier linearization, and the one due is not made:
-    the factor then stands for the tangent of a modified Newton iteration.
+    The factorization is made when a solve first needs it after :meth:`prepare`. A world whose
+    :attr:`keep` is set (the step allows it, see ``factor_reuse`` in :mod:`warpsoft.step`) solves
+    with the factorization it has, of an earlier linearization, and the one due is not made:
+    its factor then stands for the tangent of a modified Newton iteration. With several worlds
+    (one CHOLMOD factor each, :class:`WorldsCholmod`) each world is kept or factorized on its
+    own, so a world steps in a batch as it does alone; a single factor of all worlds (SuperLU)
+    is kept only when every world may keep it.
 
     Args:
         operator: the system; its rotations and scales are read when the factorization is made.
         factorization: "cholmod" (default) or "superlu" (v1's, for comparison).
 
     Attributes:
-        keep: whether the next solves may use the current factorization though a newer
-            linearization is due (set by the step; False: every linearization is factorized).
-        factorizations: numeric factorizations made so far.
-        behind: linearizations made since the one the factorization holds (0: it is current).
+        keep: ``(worlds,)`` bool, the worlds whose next solves may use their current factorization
+            though a newer linearization is due (set by the step; False: factorized at every
+            linearization).
+        factorizations: numeric factorizations made so far, a world's block counting one (one
+            robot: its factorizations).
     """
 
     capturable = False
@@ -41,27 +45,38 @@ class SparseDirect:
                              f"got {factorization!r}")
         self.op = operator
         self.assembly = Assembly(operator)
-        if factorization == "cholmod" and operator.model.num_worlds > 1:
+        worlds = operator.model.num_worlds
+        if factorization == "cholmod" and worlds > 1:
             self.factor = WorldsCholmod(self.assembly)  # each world's solves as it has them alone
         else:
             self.factor = FACTORIZATIONS[factorization](self.assembly)
         # W straight from the factor (no compliance columns solved): CHOLMOD on the CPU device
         self.factor_compliance = (isinstance(self.factor, (CholmodFactor, WorldsCholmod))
                                   and operator.model.device.is_cpu)
-        self.keep, self.factorizations, self.behind = False, 0, 0
-        self._made = False  # a factorization exists
+        self.keep = np.zeros(worlds, dtype=bool)
+        self.factorizations = 0
+        self._due = np.ones(worlds, dtype=bool)  # worlds linearized since their factorization (or never factorized)
+        self._made = np.zeros(worlds, dtype=bool)  # worlds that have a factorization
 
     def prepare(self) -> None:
         """A new linearization: ``A`` at the operator's current rotations and scales is factorized
-        when a solve next needs it (unless :attr:`keep` lets it use the one it has)."""
-        self.behind += 1
+        when a solve next needs it, in the worlds that :attr:`keep` does not let use the one they have."""
+        self._due[:] = True
 
     def _ready(self) -> None:
-        """Assemble and factorize ``A`` if a linearization is due and may not be skipped."""
-        if self.behind and not (self.keep and self._made):
-            self.factor.factorize(self.assembly.values())
-            self._made, self.behind = True, 0
-            self.factorizations += 1
+        """Assemble ``A`` and factorize the worlds whose linearization is due and may not be skipped."""
+        due = self._due & ~(self.keep & self._made)
+        if not due.any():
+            return
+        values = self.assembly.values()
+        if isinstance(self.factor, WorldsCholmod):
+            self.factor.factorize(values, due)
+        else:  # one factor of every world
+            due[:] = True
+            self.factor.factorize(values)
+        self._made |= due
+        self._due &= ~due
+        self.factorizations += int(due.sum())
 
     def solve(self, b: wp.array, x: wp.array) -> SolveResult:
         """``x[c] = A^-1 b[c]`` for ``(k, n)`` vec3d arrays. Zero columns (contact slots that
