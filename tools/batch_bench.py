@@ -117,6 +117,8 @@ def main(argv=None) -> int:
     ap.add_argument("--operator", default="auto", choices=["auto", "matrix_free", "assembled"],
                     help="how the iterative solvers apply A")
     ap.add_argument("--tolerance", type=float, default=1e-6, help="CG relative residual")
+    ap.add_argument("--warm-start", default="extrapolate", choices=["extrapolate", "last", "none"],
+                    help="where each step's first solve starts (the Simulator's warm_start)")
     ap.add_argument("--factor-ordering", default=None, choices=list(ORDERINGS),
                     help="factors: their ordering (default warpsoft.linear.factors.ORDERING)")
     ap.add_argument("--out", default="out/batch")
@@ -132,7 +134,8 @@ def main(argv=None) -> int:
     print(f"{len(scenes)} designs built in {time.perf_counter() - t0:.1f} s", flush=True)
     rows = []
     options = {"solver": args.solver, "preconditioner": args.preconditioner, "share_tolerance": args.share_tolerance,
-               "precision": args.precision, "tolerance": args.tolerance, "operator": args.operator}
+               "precision": args.precision, "tolerance": args.tolerance, "operator": args.operator,
+               "warm_start": args.warm_start}
     if args.solver in ("pcg", "auto"):
         options["block_cg"] = not args.column_cg
     for n in args.sizes:

@@ -17,6 +17,7 @@ from .elastic import element_model
 from .errors import SceneError, SimulationError
 from .launch import launch
 from .linear import SOLVERS, SystemOperator, choose, make_solver
+from .linear.guess import Extrapolation
 from .linear.operator import ASSEMBLED_FROM, OPERATORS
 from .model import Model
 from .newton import Newton
@@ -32,6 +33,7 @@ from .stats import ConvergenceWarning, StepStats, WorldStats
 
 __all__ = ["ConvergenceWarning", "Simulator", "StepStats", "WorldStats"]
 
+WARM_STARTS = {"extrapolate": "extrapolate", True: "extrapolate", "last": "last", "none": None, False: None}
 AUTO_DEVICE_QP = 4  # qp="auto" on CUDA: the device QP for worlds of up to this many actuators (measured faster)
 
 
@@ -48,7 +50,12 @@ class Simulator:
             block-Jacobi CG, kept for comparison). See :mod:`warpsoft.linear`.
         tolerance: CG relative residual |r| / |b|.
         max_iterations: CG iteration cap (reaching it is a warning in the step stats).
-        warm_start: start each free solve from the previous step's solution.
+        warm_start: where each step's first solve starts: "extrapolate" (default; True): the
+            quadratic through the last three steps' solutions in a dynamic model (``pcg`` and
+            ``jacobi``: fewer iterations, see :mod:`warpsoft.linear.guess`; ``direct`` needs no
+            start; a quasi-static step's solution is a correction toward equilibrium, no smooth
+            motion, so it starts from the last), "last": the last step's solution, "none"
+            (False): zero.
         timing: synchronize the device around stages to time them (CUDA only matters).
         check_every: ``jacobi`` only: the residual is read back every this many iterations
             (default: 1 on the CPU, where reading is free; 16 on CUDA).
@@ -125,7 +132,7 @@ class Simulator:
     """
 
     def __init__(self, scene: Scene | Sequence[Scene] | Model, device: str | None = None, solver: str = "auto",
-                 tolerance: float = 1e-6, max_iterations: int = 2000, warm_start: bool = True,
+                 tolerance: float = 1e-6, max_iterations: int = 2000, warm_start: bool | str = "extrapolate",
                  timing: bool = True, check_every: int | None = None, graphs: bool = True,
                  factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
                  qp: str = "auto", newton_iterations: int = 10, newton_tolerance: float | None = None,
@@ -139,6 +146,9 @@ class Simulator:
             raise SceneError(f"Simulator: max_iterations must be >= 1, got {max_iterations!r}")
         if qp not in ("auto", "piqp", "device"):
             raise SceneError(f"Simulator: qp must be 'auto', 'piqp' or 'device', got {qp!r}")
+        if not isinstance(warm_start, (bool, str)) or warm_start not in WARM_STARTS:
+            raise SceneError(f"Simulator: warm_start must be 'extrapolate', 'last', 'none', True or False, "
+                             f"got {warm_start!r}")
         if not (0.0 <= float(factor_reuse) < 1.0):
             raise SceneError(f"Simulator: factor_reuse must lie in [0, 1), got {factor_reuse!r}")
         self.factor_reuse = float(factor_reuse)
@@ -150,7 +160,7 @@ class Simulator:
             raise SceneError(f"Simulator: check_every must be >= 1, got {check_every!r}")
         self.model = scene if isinstance(scene, Model) else Model(scene, device)
         m, d = self.model, self.model.device
-        self.solver_name, self.warm_start, self.timing = choose(solver, d), bool(warm_start), bool(timing)
+        self.solver_name, self.warm_start, self.timing = choose(solver, d), WARM_STARTS[warm_start], bool(timing)
         if self.factor_reuse and self.solver_name != "direct":
             raise SceneError(f"Simulator: factor_reuse keeps the direct solver's factorization; solver "
                              f"{self.solver_name!r} has none (its preconditioner refreshes itself)")
@@ -234,7 +244,7 @@ class Simulator:
 
         # One batched solve per step: column 0 is the free solve A dx_free = b, columns 1..
         # the compliance A X = H_a^T of each world's actuators (effectors alone need no column).
-        # Both are warm-started from the last step.
+        # Both are warm-started from the last steps (see warm_start).
         self.rhs = wp.zeros((1 + ncol, n), dtype=wp.vec3d, device=d)
         self.sol = wp.zeros((1 + ncol, n), dtype=wp.vec3d, device=d)
         self.b, self.dx_free = self.rhs[0:1], self.sol[0:1]
@@ -243,6 +253,11 @@ class Simulator:
         self.solver = make_solver(self.solver_name, self.operator, 1 + ncol, tolerance, max_iterations, graphs,
                                   check_every, factorization, preconditioner, precision, share_tolerance,
                                   m.num_worlds > 1 if block_cg is None else bool(block_cg))
+        self.guess = None  # the extrapolated warm starts (iterative solvers)
+        if self.warm_start == "extrapolate" and self.solver_name != "direct" and not m.static:
+            held = (self.rows.world_actuators + self.rows.world_bilateral if self.rows is not None
+                    else np.zeros(m.num_worlds, dtype=np.int32))
+            self.guess = Extrapolation(1 + ncol, n, held, m.node_world, d)
         if ncol and self.rows.kind("contact") is not None and hasattr(self.solver, "bound"):
             self.solver.bound(self.rows.force_columns, 1)  # the free solve and the columns of the contacts in use
         if getattr(self.solver, "factor_compliance", False) and ncol:  # the correction's solve (no columns X)
@@ -330,6 +345,8 @@ class Simulator:
         """A poisoned warm start would spoil the next attempt: the solutions and, since a captured
         step runs to its end before its result is read, the multipliers too."""
         self.sol.zero_()
+        if self.guess is not None:
+            self.guess.forget()
         if self.rows is not None:
             self.gauss_seidel.lam.zero_()
 

@@ -231,11 +231,13 @@ def begin(sim: Simulator, actuated: bool) -> None:
 def free_solve(sim: Simulator, actuated: bool, first: bool, captured: bool) -> None:
     """The batched solve ``A [e, X] = [r, H_a^T]`` at the current linearization: the free motion
     (the step's first, or a Newton correction, started from 0) and the actuators' compliance
-    columns, warm-started from the last solve."""
+    columns, warm-started from the last solves (extrapolated: ``warm_start``)."""
     if not sim.warm_start:
         sim.sol.zero_()
     elif not first:
         sim.dx_free.zero_()
+    elif sim.guess is not None:  # from the last steps' solutions, extrapolated
+        sim.guess.predict(sim.sol, sim.newton.moved)
     if not first:
         sim.newton.hold_done_worlds()
     sim.newton.accept(actuated)
