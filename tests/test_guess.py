@@ -62,3 +62,18 @@ def test_a_bad_warm_start_is_named(scene_module):
     with pytest.raises(ws.SceneError, match="warm_start must be 'extrapolate', 'last', 'none', True or False, "
                                             "got 'quadratic'"):
         ws.Simulator(scene_module("scenes/finger.py").build(mesh_size=0.01), warm_start="quadratic")
+
+
+def test_worlds_that_turn_abruptly_start_from_the_last_solution(scene_module):
+    """A world with contacts starts from its last solutions (none of its columns extrapolated), a
+    world of a cable alone extrapolates its free motion and its cable's column, and a quasi-static
+    model extrapolates nothing."""
+    block = ws.Scene("block", gravity=(0.0, 0.0, -9.81), dt=0.005)
+    block.add_body("block", ws.box_grid((-0.01, -0.01, 0.0005), (0.01, 0.01, 0.0105), (3, 3, 2)),
+                   ws.Material(1e5, 0.3, 1000.0))
+    block.add_obstacle("floor", ws.obstacles.Floor(), mu=0.5, contact_distance=0.002)
+    finger = scene_module("scenes/finger.py").build(mesh_size=0.01)
+    assert ws.Simulator(finger, solver="pcg").guess.held.numpy().tolist() == [1]
+    assert ws.Simulator(block, solver="pcg").guess.held.numpy().tolist() == [-1]
+    static = scene_module("scenes/validation/cantilever.py").build(mesh_size=0.01)
+    assert static.static and ws.Simulator(static, solver="pcg").guess is None

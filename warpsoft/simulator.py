@@ -53,9 +53,9 @@ class Simulator:
         warm_start: where each step's first solve starts: "extrapolate" (default; True): the
             quadratic through the last three steps' solutions in a dynamic model (``pcg`` and
             ``jacobi``: fewer iterations, see :mod:`warpsoft.linear.guess`; ``direct`` needs no
-            start; a quasi-static step's solution is a correction toward equilibrium, no smooth
-            motion, so it starts from the last), "last": the last step's solution, "none"
-            (False): zero.
+            start). A quasi-static step's solution is a correction toward equilibrium, not a
+            smooth motion, and contacts and scheduled frames turn a world's motion abruptly: those
+            start from the last solution. "last": the last step's solution, "none" (False): zero.
         timing: synchronize the device around stages to time them (CUDA only matters).
         check_every: ``jacobi`` only: the residual is read back every this many iterations
             (default: 1 on the CPU, where reading is free; 16 on CUDA).
@@ -257,7 +257,10 @@ class Simulator:
         if self.warm_start == "extrapolate" and self.solver_name != "direct" and not m.static:
             held = (self.rows.world_actuators + self.rows.world_bilateral if self.rows is not None
                     else np.zeros(m.num_worlds, dtype=np.int32))
-            self.guess = Extrapolation(1 + ncol, n, held, m.node_world, d)
+            # contacts and frames carried by a schedule turn a world's motion abruptly: it starts from
+            # the last solutions (the Grasper on the H200: 2 CG iterations a step from them, 3-4 extrapolated)
+            rough = [s.touches or any(f.motion is not None for f in s.fixtures) for s in m.scenes]
+            self.guess = Extrapolation(1 + ncol, n, np.where(rough, -1, held), m.node_world, d)
         if ncol and self.rows.kind("contact") is not None and hasattr(self.solver, "bound"):
             self.solver.bound(self.rows.force_columns, 1)  # the free solve and the columns of the contacts in use
         if getattr(self.solver, "factor_compliance", False) and ncol:  # the correction's solve (no columns X)

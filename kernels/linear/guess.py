@@ -12,8 +12,8 @@ def extrapolate(held: wp.array(dtype=wp.int32), world: wp.array(dtype=wp.int32),
     step's solution from the second on, ``last`` the one before from the third, ``before`` from
     the fourth. The start is the polynomial through the solutions known, taken one step on:
     ``x`` (one), ``2 x - last`` (two), ``3 x - 3 last + before`` (three). A column past the
-    world's ``held`` force rows (a contact's, whose row changes every step) and every column
-    after a state ``moved`` from outside keep ``x``."""
+    world's ``held`` force rows (a contact's, whose row changes every step; every column where
+    ``held`` is -1) and every column after a state ``moved`` from outside keep ``x``."""
     c, i = wp.tid()
     xi = x[c, i]
     known = steps[0] - 1  # solutions known besides x
