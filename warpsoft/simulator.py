@@ -103,8 +103,8 @@ class Simulator:
             iteration after a step's first always factorizes. Each world decides on its own
             history (one factor per world), so it steps in a batch as it does alone. 0 (default)
             factorizes at every linearization: the reference. Measured in docs/performance.md:
-            at 0.005 the Grasper's CPU step 5.1-5.6 -> 3.4-3.8 ms; scenes whose steps turn faster
-            (the Finger, the Trunk, the Octoleg) iterate more than they save.
+            at 0.005 the Grasper's CPU step 5.5-5.9 -> 3.9-5.8 ms (three rounds); scenes whose
+            steps turn faster (the Finger, the Trunk, the Octoleg) iterate more than they save.
         share_tolerance: ``pcg`` with ``preconditioner="blocks"`` or ``"factors"``: worlds of one mesh and supports
             share a dense inverse when their systems differ from multiples of each other by at most
             this (the largest entry's difference, relative). The default shares exact multiples only

@@ -4,7 +4,7 @@ An iterative solve stops at a residual relative to its right-hand side, so the c
 the fewer its iterations. The free motion of a step and the actuators' compliance columns change
 smoothly from step to step: the quadratic through the last three steps' solutions, taken one step
 on, starts closer than the last solution alone (8 Diamonds of different meshes on the CPU, 20
-steps: the slowest world's iterations summed 318 -> 278, a world's mean 8.8 -> 7.6; the
+steps: the slowest world's iterations summed 318 -> 277, a world's mean 8.8 -> 7.6; the
 trajectories 7e-10 m apart, of a 32 mm motion). The columns of contacts, whose rows change every
 step, start from the last solution; so does every column after a state changed from outside,
 every quasi-static step (its solution is a correction toward equilibrium, not a smooth motion: a
