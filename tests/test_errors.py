@@ -89,6 +89,35 @@ def test_time_dependent_load_returning_nan_is_named():
         sim.step()
 
 
+def test_a_cable_schedule_that_fails_is_named_and_a_numpy_number_is_taken():
+    """Each step reads the actuators' own schedules at once: one that returns NaN, a word or
+    raises is still named with its value and time, and the state before the step is kept; one
+    that returns a NumPy number is read as that number."""
+    def beam(schedule):
+        scene = ws.Scene("s", dt=0.01)
+        body = scene.add_body("beam", MESH, MAT)
+        scene.fix(body, CLAMP)
+        scene.add_cable("steady", body, points=[(0.02, 0.005, 0.009), (0.04, 0.005, 0.009)],
+                        pull_point=(-0.01, 0.005, 0.009), value=lambda t: 1e-4 * t)
+        scene.add_cable("c", body, points=[(0.02, 0.005, 0.001), (0.04, 0.005, 0.001)],
+                        pull_point=(-0.01, 0.005, 0.001), value=schedule)
+        return ws.Simulator(scene)
+
+    cases = [(lambda t: math.nan if t > 0.015 else 0.0, r"cable 'c': value\(0.02\) must be finite, got nan"),
+             (lambda t: "pull" if t > 0.015 else 0.0, r"cable 'c': value\(0.02\) must be a number, got 'pull'"),
+             (lambda t: 0.0 if t < 0.015 else 1.0 / 0.0, r"cable 'c': its input schedule raised ZeroDivisionError")]
+    for schedule, match in cases:
+        sim = beam(schedule)
+        sim.step()
+        q = sim.state.positions().copy()
+        with pytest.raises(ws.SceneError, match=match):
+            sim.step()
+        assert np.array_equal(sim.state.positions(), q) and sim.step_index == 1
+    sim = beam(lambda t: np.float32(0.25) * t)
+    sim.step()
+    assert sim.values.tolist() == [1e-4 * 0.01, float(np.float32(0.25) * 0.01)]
+
+
 def test_nan_never_leaves_a_step_and_state_is_kept():
     scene = ws.Scene("s", dt=0.01)
     body = scene.add_body("beam", MESH, MAT)

@@ -405,6 +405,8 @@ def actuator_values(sim: Simulator, t: float, controls: list[Control | None]) ->
     """The input of every actuator row at time ``t`` (``(rows,)``): a Control's value, else the
     actuator's own (a number, or a schedule called once here)."""
     rows = sim.rows
+    if not any(c is not None and c.inputs for c in controls):
+        return own_inputs(sim, t)
     values = [0.0] * rows.num_rows  # (a list, made an array once; 256 Diamonds: 0.97 -> 0.68 ms, CPU VM)
     for w, (acts, start, control) in enumerate(zip(rows.actuators, rows.world_row_start.tolist(), controls,
                                                    strict=False)):
@@ -422,6 +424,33 @@ def actuator_values(sim: Simulator, t: float, controls: list[Control | None]) ->
                 raise SceneError(f"control{sim.world_label(w)}: input of {a.kind} '{a.name}' must be finite, got {v}")
             values[start + k] = v
     return np.array(values)
+
+
+def own_inputs(sim: Simulator, t: float) -> np.ndarray:
+    """Every actuator row's own input at ``t`` (``(rows,)``): the numbers laid out once, at the
+    first call, and the schedules called in one loop; a schedule that raises or gives no finite
+    number is then named by :meth:`~warpsoft.scene.actuator.Actuator.input_at`, as each input
+    was read before (1024 Diamonds, 4096 cable schedules on the CPU VM: 3.9-5.7 -> 1.1-2.1 ms a step)."""
+    if sim.own_inputs is None:
+        rows, base, place, schedules = sim.rows, np.zeros(sim.rows.num_rows), [], []
+        for acts, start in zip(rows.actuators, rows.world_row_start.tolist(), strict=False):
+            for k, a in enumerate(acts):
+                if callable(a.value):
+                    place.append(start + k)
+                    schedules.append(a)
+                else:
+                    base[start + k] = a.value
+        sim.own_inputs = (base, np.array(place, dtype=np.int64), [a.value for a in schedules], schedules)
+    base, place, calls, schedules = sim.own_inputs
+    values = base.copy()
+    try:
+        values[place] = [float(f(t)) for f in calls]
+        if np.isfinite(values[place]).all():
+            return values
+    except Exception:  # (input_at below says what and whose)
+        pass
+    values[place] = [a.input_at(t) for a in schedules]  # the slow way, which names the actuator at fault
+    return values
 
 
 def resolve_on_device(sim: Simulator) -> None:
