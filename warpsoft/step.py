@@ -430,7 +430,7 @@ def own_inputs(sim: Simulator, t: float) -> np.ndarray:
     """Every actuator row's own input at ``t`` (``(rows,)``): the numbers laid out once, at the
     first call, and the schedules called in one loop; a schedule that raises or gives no finite
     number is then named by :meth:`~warpsoft.scene.actuator.Actuator.input_at`, as each input
-    was read before (1024 Diamonds, 4096 cable schedules on the CPU VM: 3.9-5.7 -> 1.1-2.1 ms a step)."""
+    was read before (1024 Diamonds, 4096 cable schedules on the CPU VM: 2.8-5.7 -> 1.0-2.1 ms a step)."""
     if sim.own_inputs is None:
         rows, base, place, schedules = sim.rows, np.zeros(sim.rows.num_rows), [], []
         for acts, start in zip(rows.actuators, rows.world_row_start.tolist(), strict=False):
