@@ -67,7 +67,7 @@ def test_a_kept_factorization_reaches_the_same_equilibrium(scene_module):
     (see the first test); kept factorizations (``factor_reuse``) change the tangent of those
     steps, not the forces they balance: the same equilibrium, to 1e-8 m, with fewer
     factorizations than steps."""
-    reference, every = run(cantilever(scene_module), 40, newton_iterations=1)
+    reference, every = run(cantilever(scene_module), 40, newton_iterations=1)  # (quasi-static: no reuse by default)
     reuse, kept = run(cantilever(scene_module), 40, newton_iterations=1, factor_reuse=0.5)
     ref = reference.probe_positions()["tip"]
     assert np.abs(reuse.probe_positions()["tip"] - ref).max() < 1e-8
@@ -90,8 +90,8 @@ def test_a_kept_factorization_keeps_a_swinging_beam_on_its_trajectory(scene_modu
             path.append(sim.probe_positions()["tip"])
         return history, np.array(path)
 
-    _, converged = swing(newton_tolerance=1e-4, newton_iterations=20)
-    every, fresh = swing()
+    _, converged = swing(newton_tolerance=1e-4, newton_iterations=20, factor_reuse=0.0)
+    every, fresh = swing(factor_reuse=0.0)
     kept, reused = swing(factor_reuse=0.01)
     assert np.ptp(converged[:, 2]) > 0.03
     error_fresh, error_kept = np.abs(fresh - converged).max(), np.abs(reused - converged).max()
@@ -99,6 +99,31 @@ def test_a_kept_factorization_keeps_a_swinging_beam_on_its_trajectory(scene_modu
     assert sum(s.factorizations for s in every) == sum(s.newton_iterations for s in every)
     assert sum(s.factorizations for s in kept) < sum(s.newton_iterations for s in kept)
     assert all(s.factorizations >= s.newton_iterations - 1 for s in kept)
+
+
+def test_a_world_whose_kept_factorizations_fail_asks_more_before_it_tries_again(scene_module, monkeypatch):
+    """The Finger as its cable starts to pull: a kept factorization's step misses ``factor_reuse``
+    and iterates on a fresh one (a failed try, one iteration more than it saves). With the margin
+    each failure divides the residual a world's last step must have left by 8: one try fails in
+    30 steps, against four when every step under ``factor_reuse`` tries (the margin held at 1),
+    and the run takes fewer Newton iterations. By default (``factor_reuse=None``) a dynamic
+    step with ``direct`` keeps factorizations, a quasi-static one does not."""
+    def finger(**options):
+        sim = ws.Simulator(scene_module("scenes/finger.py").build(mesh_size=0.012), solver="direct",
+                           factor_reuse=0.005, **options)
+        history = [sim.step() for _ in range(30)]
+        return sim.reuse, sum(s.newton_iterations for s in history)
+
+    (reuse, iterations) = finger()
+    monkeypatch.setattr(ws.reuse, "MARGIN_CUT", 1.0)
+    (always, iterations_always) = finger()
+    assert reuse.failures <= 1 < 3 <= always.failures and reuse.tries > reuse.failures
+    assert iterations < iterations_always
+    assert ws.reuse.MARGIN_FLOOR <= reuse.margin[0] < 1.0
+    dynamic = ws.Simulator(scene_module("scenes/finger.py").build(mesh_size=0.012), solver="direct")
+    static = ws.Simulator(scene_module("scenes/finger.py").build(mesh_size=0.012, static=True), solver="direct")
+    assert dynamic.factor_reuse == ws.reuse.FACTOR_REUSE > 0.0 and static.factor_reuse == 0.0
+    assert ws.Simulator(scene_module("scenes/finger.py").build(mesh_size=0.012), solver="pcg").factor_reuse == 0.0
 
 
 def test_newton_options_are_checked(scene_module):
@@ -137,7 +162,7 @@ def test_each_world_keeps_or_makes_its_factorization_as_it_would_alone(scene_mod
         return scene_module("scenes/validation/cantilever.py").build(gravity=9.81, static=False, young_modulus=young,
                                                                       mesh_size=0.005)
 
-    moduli, steps, reuse = (1.5e5, 3e5, 1e6), 40, 0.01
+    moduli, steps, reuse = (1.5e5, 3e5, 1e6), 40, 0.02
     alone = []
     for young in moduli:
         sim = ws.Simulator(swing(young), solver="direct", factor_reuse=reuse)

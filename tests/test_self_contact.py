@@ -79,7 +79,8 @@ def test_two_pieces_of_one_body_collide_and_keep_their_momentum():
         stats = sim.step()
         met |= stats.worlds[0].contacts > 0
         vel = sim.state.v.numpy()
-        assert np.allclose((mass[:, None] * vel).sum(axis=0), p0, rtol=0, atol=1e-12 * np.abs(p0).max())
+        # (round-off over the 60 steps: 3e-13 with a factorization each step, 1.1e-12 with kept ones)
+        assert np.allclose((mass[:, None] * vel).sum(axis=0), p0, rtol=0, atol=1e-11 * np.abs(p0).max())
         assert face_gaps(mesh.nodes, sim.positions(), 0.01, 0.011).min() >= -1e-7  # the step's linearization
     assert met
     assert 0.5 * (mass * (vel**2).sum(axis=1)).sum() <= energy0

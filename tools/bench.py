@@ -69,7 +69,7 @@ PAPER_MS = {"diamond_inverse": 22.0, "diamond_inverse_softrobots_mesh": 22.0, "t
 
 # v1 and v2 per device: the solver (and options) each release used by default there
 CONFIGS = {
-    "v1": {"cpu": ("direct", {"factorization": "superlu", "qp": "piqp", "newton_iterations": 1}),
+    "v1": {"cpu": ("direct", {"factorization": "superlu", "qp": "piqp", "newton_iterations": 1, "factor_reuse": 0.0}),
            "cuda": ("jacobi", {"qp": "piqp", "newton_iterations": 1})},
     "v2": {"cpu": ("direct", {}), "cuda": ("pcg", {})},
 }
@@ -271,8 +271,9 @@ def main(argv=None) -> int:
                     help="pcg's dense warped inverse")
     ap.add_argument("--preconditioner", choices=["auto", "host", "dense", "blocks", "factors"], default="auto",
                     help="pcg's warped preconditioner (auto: dense on CUDA up to 12k free DOFs, host above)")
-    ap.add_argument("--factor-reuse", type=float, default=0.0,
-                    help="direct: the Simulator's factor_reuse (0: a factorization at every linearization)")
+    ap.add_argument("--factor-reuse", type=float, default=None,
+                    help="direct: the Simulator's factor_reuse (0: a factorization at every linearization; "
+                         "default: the Simulator's)")
     cg = ap.add_mutually_exclusive_group()
     cg.add_argument("--column-cg", action="store_const", dest="block_cg", const=False,
                     help="pcg: each column its own CG (block_cg=False)")
@@ -288,7 +289,7 @@ def main(argv=None) -> int:
         pcg = {"precision": args.precision, "preconditioner": args.preconditioner, "block_cg": args.block_cg,
                "operator": args.operator}
         runs = [("v2", args.solver, {"qp": args.qp} | (pcg if args.solver in ("pcg", "auto") else {}))]
-    if args.factor_reuse:
+    if args.factor_reuse is not None:
         runs = [(config, solver, options | {"factor_reuse": args.factor_reuse}) for config, solver, options in runs
                 if config == "v2"]
     chosen = [s for s in SCENES if args.scenes is None or s[0] in args.scenes]

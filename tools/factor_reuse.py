@@ -60,7 +60,7 @@ def main(argv=None) -> int:
     for name, path, params, steps in SCENES:
         if args.scenes is not None and name not in args.scenes:
             continue
-        converged, _, _ = trajectory(path, params, steps, newton_tolerance=1e-4, newton_iterations=20)
+        converged, _, _ = trajectory(path, params, steps, newton_tolerance=1e-4, newton_iterations=20, factor_reuse=0.0)
         motion = float(np.linalg.norm(converged - converged[0], axis=2).max())
         for value in args.values:
             q, stats, times = trajectory(path, params, steps, factor_reuse=value)

@@ -75,6 +75,7 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     record_newton(sim, stats)
     if factorizations is not None:
         stats.factorizations = sim.solver.factorizations - factorizations
+        sim.reuse.learn(newton)
         sim.solver.keep[:] = False  # (a solve between steps takes the linearization made last)
     watch.health(sim, stats, host)
     watch.inverted_elements(sim, stats, host)
@@ -159,21 +160,12 @@ def replay(sim: Simulator, stats: StepStats, name: str, work) -> None:
 
 def reuse_factor(sim: Simulator) -> int | None:
     """Which worlds may keep the direct solver's factorization of an earlier linearization in this
-    step (``factor_reuse``): those whose step before converged in its first iteration, without a
-    line search, with a nonlinear residual at most ``factor_reuse``. That residual measures the
-    tangent's error along the step (see :mod:`warpsoft.newton`), a stale factorization's with the
-    rest, so a world's factorization is made again as soon as it drifts; and a world that keeps
-    it must end this step within ``factor_reuse`` too, or iterate on a fresh one (Newton's
-    ``limit``). Each world decides on its own history, as it would alone. Returns the solver's
+    step (``factor_reuse``, decided by :class:`~warpsoft.reuse.FactorReuse`). Returns the solver's
     factorization count (None: a solver without one)."""
-    solver, newton = sim.solver, sim.newton
+    solver = sim.solver
     if not hasattr(solver, "factorizations"):
         return None
-    keep = np.zeros(sim.model.num_worlds, dtype=bool)
-    if sim.factor_reuse and sim.step_index > 0:
-        keep = (newton.iterations == 1) & ~newton.retried & (newton.error <= sim.factor_reuse)
-    solver.keep[:] = keep
-    newton.limit[:] = np.where(keep, min(newton.tolerance, sim.factor_reuse), newton.tolerance)
+    solver.keep[:] = sim.reuse.decide(sim.newton, sim.step_index == 0)
     return solver.factorizations
 
 
@@ -197,6 +189,7 @@ def begin(sim: Simulator, actuated: bool) -> None:
     def again() -> None:  # the state changed since the last step linearized it
         if sim.factor_reuse:  # (by a jump the last factorization knows nothing of)
             sim.solver.keep[:] = False
+            sim.reuse.forget()
             sim.newton.limit[:] = sim.newton.tolerance
         linearize(sim, q)
         if actuated:
