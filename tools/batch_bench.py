@@ -7,7 +7,9 @@ The designs are Diamonds driven directly by their four cables (a step input held
 leg radius (``--meshes`` different meshes, cycled) and Young's modulus (log-spaced over 0.1-0.3
 MPa). Per batch size: the model's DOFs, the step's median (ms) after ``--warmup`` steps, and the
 design-steps per second (designs / step time). ``--alone K``: the first K designs one at a time
-(the sum of their medians) against the batch of the same K. Writes batch.json and batch.md.
+(the sum of their medians) against the batch of the same K. ``--kernels`` (CUDA): after the timed
+steps, one more step uncaptured with each kernel and copy timed (batch.json's ``kernels``, and
+kernels.md). Writes batch.json and batch.md.
 """
 
 from __future__ import annotations
@@ -30,6 +32,9 @@ from warpsoft.linear import factors
 from warpsoft.linear.assembly import ORDERINGS
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+from bench import kernel_table  # noqa: E402  (a sibling tool: the per-kernel table of one step)
+
 GRAPHS = ("device_step", "newton_step", "line_search", "device_before_qp", "newton_before_qp", "device_after_qp")
 LEG_RADII = (0.009, 0.010, 0.011, 0.012, 0.013, 0.014, 0.015, 0.016)  # m: one mesh each
 
@@ -50,10 +55,12 @@ def designs(count: int, meshes: int) -> list[dict]:
              "cable_displacements": (0.004, 0.0, 0.002, 0.0), "ramp_time": 0.05} for k in range(count)]
 
 
-def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -> tuple[float, int, dict]:
+def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: bool = False,
+                **options) -> tuple[float, int, dict]:
     """Median step time (s) of ``scenes`` as one model, its DOFs, and what the solve did: the CG
     iterations of a step and the mean of its worlds' (medians over the timed steps), and the
-    preconditioner's distinct blocks and device memory when it keeps them per world."""
+    preconditioner's distinct blocks and device memory when it keeps them per world; with
+    ``kernels`` (CUDA), one more step uncaptured, each kernel and copy timed (``info["kernels"]``)."""
     t0 = time.perf_counter()
     sim = ws.Simulator(ws.finalize(scenes, device), device=device, **options)
     for _ in range(warmup):
@@ -67,8 +74,11 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -
         graphs.append(sum(t for name, t in stats.stages.items() if name in GRAPHS))
         its.append(stats.cg_iterations)
         world_its.append(np.mean([w.cg_iterations for w in stats.worlds]))
+    if kernels and sim.model.device.is_cuda:
+        parts = {"kernels": uncaptured_kernels(sim)}
+    else:
+        parts = {}
     pre = getattr(sim.solver, "precond", None)
-    parts = {}
     if pre is not None and getattr(pre, "capturable", False):  # a CG iteration's two big products, alone
         solver = sim.solver
         solver.scal.zero_()  # no world done: the product runs for all of them
@@ -82,6 +92,25 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, **options) -
             "setup_s": setup, "preconditioner": type(pre).__name__,
             "blocks": getattr(pre, "blocks", None), "precond_mb": getattr(pre, "memory_bytes", 0) / 1e6}
     return float(np.median(times)), sim.model.num_dofs, info
+
+
+def uncaptured_kernels(sim) -> dict:
+    """One step of ``sim`` with its graphs off, each kernel and copy timed on the device: the
+    step's wall time (ms), its CG iterations and the table of :func:`bench.kernel_table`."""
+    graph, capture = getattr(sim.solver, "graph", None), sim.capture
+    if graph is not None:
+        sim.solver.graph = False
+    sim.capture = False
+    wp.synchronize_device(sim.model.device)
+    wp.timing_begin(cuda_filter=wp.TIMING_KERNEL | wp.TIMING_MEMCPY | wp.TIMING_MEMSET)
+    t0 = time.perf_counter()
+    stats = sim.step()
+    wall = time.perf_counter() - t0
+    table = kernel_table(wp.timing_end())
+    if graph is not None:
+        sim.solver.graph = graph
+    sim.capture = capture
+    return {"step": stats.index, "wall_ms": 1e3 * wall, "cg_iterations": stats.cg_iterations, "table": table}
 
 
 def _median_call(call, device, repeats: int = 20) -> float:
@@ -121,6 +150,8 @@ def main(argv=None) -> int:
                     help="where each step's first solve starts (the Simulator's warm_start)")
     ap.add_argument("--factor-ordering", default=None, choices=list(ORDERINGS),
                     help="factors: their ordering (default warpsoft.linear.factors.ORDERING)")
+    ap.add_argument("--kernels", action="store_true",
+                    help="CUDA: time each kernel and copy of one more step, uncaptured (kernels.md)")
     ap.add_argument("--out", default="out/batch")
     args = ap.parse_args(argv)
     if args.factor_ordering:
@@ -140,7 +171,7 @@ def main(argv=None) -> int:
         options["block_cg"] = not args.column_cg
     for n in args.sizes:
         t0 = time.perf_counter()
-        median, dofs, info = step_median(scenes[:n], args.device, args.steps, args.warmup, **options)
+        median, dofs, info = step_median(scenes[:n], args.device, args.steps, args.warmup, args.kernels, **options)
         rows.append({"designs": n, "dofs": dofs, "step_ms": 1e3 * median, "design_steps_per_s": n / median,
                      "wall_s": time.perf_counter() - t0, **info})
         print(f"batch {n:5d}: {dofs:8d} DOFs  step {1e3 * median:8.2f} ms  {n / median:9.1f} design-steps/s  "
@@ -173,7 +204,27 @@ def main(argv=None) -> int:
         lines += ["", f"{alone['designs']} designs one at a time: {alone['one_at_a_time_ms']:.2f} ms per step of "
                   f"all; batched: {alone['batched_ms']:.2f} ms; ratio {alone['ratio']:.1f}"]
     (out / "batch.md").write_text("\n".join(lines) + "\n")
+    if args.kernels:
+        (out / "kernels.md").write_text(kernels_markdown(rows))
     return 0
+
+
+def kernels_markdown(rows: list[dict]) -> str:
+    """Per batch size, the uncaptured step's kernels and copies by device time."""
+    out = []
+    for r in rows:
+        k = r.get("kernels")
+        if not k:
+            continue
+        total = sum(e["us"] for e in k["table"])
+        out += [f"## {r['designs']} designs, step {k['step']}: {total / 1e3:.2f} ms of device time in "
+                f"{sum(e['launches'] for e in k['table'])} launches and copies ({k['wall_ms']:.1f} ms uncaptured, "
+                f"CG {k['cg_iterations']})", "", "| kernel or copy | launches | ms | us per launch |",
+                "|---|---|---|---|"]
+        out += [f"| {e['name']} | {e['launches']} | {e['us'] / 1e3:.3f} | {e['us'] / e['launches']:.1f} |"
+                for e in k["table"]]
+        out.append("")
+    return "\n".join(out)
 
 
 if __name__ == "__main__":

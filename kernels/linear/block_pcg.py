@@ -22,7 +22,7 @@ sides then share one direction instead of breaking the factorization.
 import warp as wp
 
 from .cg import B2, DONE, ITS, R2, R2_LAST
-from .pcg import ITERATIONS, NODES_PER_BLOCK, NONFINITE, block_add, block_world, node_add
+from .pcg import ITERATIONS, NODES_PER_BLOCK, NONFINITE, block_world
 
 MAX_COLUMNS = 16  # a block holds at most this many right-hand sides (k^2 / 2 reductions an iteration)
 G_PAP = wp.constant(0)  # gram[w, G_PAP]: P^T A P
@@ -32,9 +32,6 @@ NUM_GRAMS = 3
 ALPHA = wp.constant(0)  # coef[w, ALPHA]
 BETA = wp.constant(1)  # coef[w, BETA]
 DEPENDENT = wp.constant(1e-12)  # a scaled Cholesky pivot below this drops its direction
-Small = wp.types.matrix(shape=(MAX_COLUMNS, MAX_COLUMNS), dtype=wp.float64)  # a world's k x k, local
-Diagonal = wp.types.vector(length=MAX_COLUMNS, dtype=wp.float64)
-Flags = wp.types.vector(length=MAX_COLUMNS, dtype=wp.int32)
 
 
 @wp.func
@@ -49,262 +46,360 @@ def running(wdone: wp.array(dtype=wp.int32), w: int) -> bool:
     return wdone[w] == 0
 
 
-@wp.kernel
-def gram(u: wp.array2d(dtype=wp.vec3d), v: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d),
-         pair_a: wp.array(dtype=wp.int32), pair_b: wp.array(dtype=wp.int32), world: wp.array(dtype=wp.int32),
-         scal: wp.array3d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), slot: int,
-         out: wp.array4d(dtype=wp.float64)):
-    """``out[w, slot, a, b] += sum_i u[a, i] . (mask v[b, i])`` over pair ``q = (a, b)`` with
-    ``a <= b`` (launched over ``(pairs, node blocks)``; :func:`load` mirrors the other half), in
-    the running worlds, between live columns."""
-    q, blk, lane = wp.tid()
-    a, b = pair_a[q], pair_b[q]
-    i0, i1, w, uniform = block_world(blk, u.shape[1], world)
-    s = wp.float64(0.0)
-    i = i0 + lane
-    skip = uniform and not (running(wdone, w) and live(scal, a, w) and live(scal, b, w))
-    if skip:
-        i = i1
-    while i < i1:
-        wi = world[i]
-        if running(wdone, wi) and live(scal, a, wi) and live(scal, b, wi):
-            value = wp.dot(u[a, i], wp.cw_mul(mask[i], v[b, i]))
-            if uniform:
-                s += value
-            else:
-                wp.atomic_add(out, wi, slot, a, b, value)
-        i += wp.block_dim()
-    total = wp.tile_sum(wp.tile(s))
-    if uniform and not skip and lane == 0:
-        wp.atomic_add(out, w, slot, a, b, total[0])
+_grams = {}
 
 
-@wp.func
-def load(g: wp.array4d(dtype=wp.float64), w: int, slot: int, k: int) -> Small:
-    """``g[w, slot]`` (its upper half filled) as a symmetric local matrix."""
-    m = Small()
-    for a in range(k):
-        for b in range(a, k):
-            v = g[w, slot, a, b]
-            m[a, b] = v
-            m[b, a] = v
-    return m
+def gram_kernel(columns: int):
+    """``out[w, slot, a, b] += sum_i u[a, i] . (mask v[b, i])`` over the pairs ``a <= b`` of
+    the ``k = columns`` columns (:func:`load` mirrors the other half), in the running worlds,
+    between live columns; launched over node blocks (:func:`launch_blocks`). A thread reads its
+    node's ``2 k`` vectors once and adds the ``k (k + 1) / 2`` products, where a launch per pair
+    read 2 vectors a pair (``k + 1`` times the bytes: for the 5 columns of 1024 Diamonds on the
+    H200, 210 us a Gram matrix against 395, the step's mean). Cached per ``k`` (a compile-time constant: the sums
+    live in registers)."""
+    if columns in _grams:
+        return _grams[columns]
+    K = columns
+    P = K * (K + 1) // 2
+    Sums = wp.types.vector(length=P, dtype=wp.float64)
+    Vs = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
+
+    @wp.kernel(module="unique")
+    def gram_pairs(u: wp.array2d(dtype=wp.vec3d), v: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d),
+                   world: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
+                   wdone: wp.array(dtype=wp.int32), slot: int, out: wp.array4d(dtype=wp.float64)):
+        blk, lane = wp.tid()
+        i0, i1, w, uniform = block_world(blk, u.shape[1], world)
+        s = Sums()
+        skip = uniform and not running(wdone, w)  # (the same for the block's threads)
+        i = i0 + lane
+        if skip:
+            i = i1
+        while i < i1:
+            wi = world[i]
+            if running(wdone, wi):
+                m = mask[i]
+                vs = Vs()
+                for b in range(K):
+                    if live(scal, b, wi):
+                        vb = wp.cw_mul(m, v[b, i])
+                        vs[b, 0] = vb[0]
+                        vs[b, 1] = vb[1]
+                        vs[b, 2] = vb[2]
+                q = wp.int32(0)
+                for a in range(K):
+                    ua = wp.vec3d()
+                    if live(scal, a, wi):
+                        ua = u[a, i]
+                    for b in range(a, K):
+                        value = ua[0] * vs[b, 0] + ua[1] * vs[b, 1] + ua[2] * vs[b, 2]
+                        if uniform:
+                            s[q] = s[q] + value
+                        else:
+                            wp.atomic_add(out, wi, slot, a, b, value)
+                        q += 1
+            i += wp.block_dim()
+        if uniform and not skip:
+            q = wp.int32(0)
+            for a in range(K):
+                for b in range(a, K):
+                    total = wp.tile_sum(wp.tile(s[q]))
+                    if lane == 0:
+                        wp.atomic_add(out, w, slot, a, b, total[0])
+                    q += 1
+
+    _grams[columns] = gram_pairs
+    return gram_pairs
 
 
-@wp.func
-def solve_small(g: Small, rhs: Small, k: int) -> Small:
-    """``G^-1 rhs`` for the symmetric positive semi-definite ``G = g`` (``k x k`` of local
-    matrices, in registers or local memory: this thread's alone). Cholesky of
-    ``D^-1/2 G D^-1/2`` (``D`` its diagonal); a pivot below :data:`DEPENDENT`, or a zero diagonal
-    (a column left out), drops its row and column, and that row of the solution is 0 (its
-    direction is not taken). One direction alone is CG's own quotient."""
-    out = Small()
-    d = Diagonal()
-    keep = Flags()
-    kept = wp.int32(0)
-    only = wp.int32(0)
-    for a in range(k):
-        if g[a, a] > wp.float64(0.0):
-            keep[a] = 1
-            d[a] = wp.sqrt(g[a, a])
-            kept += 1
-            only = a
-    if kept == 1:
-        for col in range(k):
-            out[only, col] = rhs[only, col] / g[only, only]
-    if kept <= 1:
-        return out
-    lw = Small()
-    for j in range(k):  # the scaled factor, column by column (lower triangle)
-        if keep[j] == 0:
-            continue
-        for i in range(j, k):
-            if keep[i] == 0:
-                continue
-            s = g[i, j] / (d[j] * d[i])
-            for m in range(j):
-                if keep[m] != 0:
-                    s -= lw[i, m] * lw[j, m]
-            if i == j:
-                if s <= DEPENDENT:
-                    keep[j] = 0
-                    break
-                lw[j, j] = wp.sqrt(s)
-            else:
-                lw[i, j] = s / lw[j, j]
-    for col in range(k):  # each right-hand side: forward and back substitution, scaled
-        for i in range(k):
-            if keep[i] == 0:
-                continue
-            s = rhs[i, col] / d[i]
-            for m in range(i):
-                if keep[m] != 0:
-                    s -= lw[i, m] * out[m, col]
-            out[i, col] = s / lw[i, i]
-        for ii in range(k):
-            i = k - 1 - ii
-            if keep[i] == 0:
-                continue
-            s = out[i, col]
-            for m in range(i + 1, k):
-                if keep[m] != 0:
-                    s -= lw[m, i] * out[m, col]
-            out[i, col] = s / lw[i, i]
-        for i in range(k):
-            if keep[i] != 0:
-                out[i, col] = out[i, col] / d[i]
-    return out
+_updates = {}
 
 
-@wp.func
-def store(m: Small, coef: wp.array4d(dtype=wp.float64), w: int, slot: int, k: int):
-    """``coef[w, slot] = m`` (``k x k``)."""
-    for a in range(k):
-        for b in range(k):
-            coef[w, slot, a, b] = m[a, b]
-
-
-@wp.kernel
-def block_alpha(g: wp.array4d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), k: int,
-                coef: wp.array4d(dtype=wp.float64), active: wp.array(dtype=wp.int32)):
-    """One thread per world: ``alpha = G_PAP^-1 G_RZ``; clears the loop flag, which
-    :func:`block_scalars` sets again while a world still has to run."""
-    w = wp.tid()
-    if w == 0:
-        active[0] = 0
-    if not running(wdone, w):
-        return
-    store(solve_small(load(g, w, G_PAP, k), load(g, w, G_RZ, k), k), coef, w, ALPHA, k)
-
-
-@wp.kernel
-def block_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d),
-                 ap: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d), world: wp.array(dtype=wp.int32),
-                 scal: wp.array3d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32),
-                 coef: wp.array4d(dtype=wp.float64)):
+def block_update_kernel(columns: int):
     """``x[a] += sum_b p[b] alpha[b, a]``, ``r[a] -= P(sum_b A p[b] alpha[b, a])`` (``P`` the
-    projection on the free DOFs) for column ``a``; accumulates ``r.r`` into ``scal[a, w, R2]``
-    (launched over ``(k, node blocks)``; ``p`` and ``A p`` are only read)."""
-    a, blk, lane = wp.tid()
-    i0, i1, w, uniform = block_world(blk, r.shape[1], world)
-    rr = wp.float64(0.0)
-    i = i0 + lane
-    if uniform and not (running(wdone, w) and live(scal, a, w)):
-        i = i1
-    while i < i1:
-        wi = world[i]
-        if running(wdone, wi) and live(scal, a, wi):
-            dx = wp.vec3d()
-            dr = wp.vec3d()
-            for b in range(p.shape[0]):
-                alpha = coef[wi, ALPHA, b, a]
-                if alpha != wp.float64(0.0):
-                    dx += alpha * p[b, i]
-                    dr += alpha * ap[b, i]
-            x[a, i] = x[a, i] + dx
-            ri = r[a, i] - wp.cw_mul(mask[i], dr)
-            r[a, i] = ri
-            rr = node_add(uniform, rr, wp.dot(ri, ri), scal, a, wi, R2)
-        i += wp.block_dim()
-    block_add(rr, lane, uniform, scal, a, w, R2)
+    projection on the free DOFs) for the live columns ``a`` of the running worlds; accumulates
+    ``r.r`` into ``scal[a, w, R2]``. A thread per node reads its ``2 k`` vectors of ``p`` and
+    ``A p`` once (a thread per column and node read them ``k`` times: on the H200, 1024
+    Diamonds' 5 columns, 360 us a launch against 431). Launched over node blocks (:func:`launch_blocks`);
+    cached per ``k = columns``."""
+    if columns in _updates:
+        return _updates[columns]
+    K = columns
+    Vs = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
+    Rs = wp.types.vector(length=K, dtype=wp.float64)
+
+    @wp.kernel(module="unique")
+    def block_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d),
+                     ap: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d), world: wp.array(dtype=wp.int32),
+                     scal: wp.array3d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32),
+                     coef: wp.array4d(dtype=wp.float64)):
+        blk, lane = wp.tid()
+        i0, i1, w, uniform = block_world(blk, r.shape[1], world)
+        rr = Rs()
+        skip = uniform and not running(wdone, w)  # (the same for the block's threads)
+        i = i0 + lane
+        if skip:
+            i = i1
+        while i < i1:
+            wi = world[i]
+            if running(wdone, wi):
+                ps = Vs()
+                aps = Vs()
+                for b in range(K):
+                    pb = p[b, i]
+                    apb = ap[b, i]
+                    for c in range(3):
+                        ps[b, c] = pb[c]
+                        aps[b, c] = apb[c]
+                m = mask[i]
+                for a in range(K):
+                    if live(scal, a, wi):
+                        dx = wp.vec3d()
+                        dr = wp.vec3d()
+                        for b in range(K):
+                            alpha = coef[wi, ALPHA, b, a]
+                            if alpha != wp.float64(0.0):  # (a direction dropped: none of its p is read)
+                                dx += alpha * wp.vec3d(ps[b, 0], ps[b, 1], ps[b, 2])
+                                dr += alpha * wp.vec3d(aps[b, 0], aps[b, 1], aps[b, 2])
+                        x[a, i] = x[a, i] + dx
+                        ri = r[a, i] - wp.cw_mul(m, dr)
+                        r[a, i] = ri
+                        if uniform:
+                            rr[a] = rr[a] + wp.dot(ri, ri)
+                        else:
+                            wp.atomic_add(scal, a, wi, R2, wp.dot(ri, ri))
+            i += wp.block_dim()
+        if uniform and not skip:
+            for a in range(K):
+                total = wp.tile_sum(wp.tile(rr[a]))
+                if lane == 0:
+                    wp.atomic_add(scal, a, w, R2, total[0])
+
+    _updates[columns] = block_update
+    return block_update
 
 
-@wp.kernel
-def block_direction(z: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d), world: wp.array(dtype=wp.int32),
-                    scal: wp.array3d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32),
-                    coef: wp.array4d(dtype=wp.float64)):
-    """``z[a] += sum_b p[b] beta[b, a]``: the new directions, made in ``z`` (which :func:`take_direction`
-    then copies to ``p``) so that every thread reads the old ``p`` (launched over ``(k, n)``)."""
-    a, i = wp.tid()
-    w = world[i]
-    if not (running(wdone, w) and live(scal, a, w)):
-        return
-    new = z[a, i]
-    for b in range(p.shape[0]):
-        beta = coef[w, BETA, b, a]
-        if beta != wp.float64(0.0):
-            new += beta * p[b, i]
-    z[a, i] = new
+_directions = {}
 
 
-@wp.kernel
-def take_direction(z: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d), world: wp.array(dtype=wp.int32),
-                   scal: wp.array3d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32)):
-    """``p = z`` in the live columns of the running worlds."""
-    a, i = wp.tid()
-    w = world[i]
-    if running(wdone, w) and live(scal, a, w):
-        p[a, i] = z[a, i]
+def block_direction_kernel(columns: int):
+    """``p[a] = z[a] + sum_b p[b] beta[b, a]``: the new directions of the live columns of the
+    running worlds, a thread per node, which holds its node's old ``p`` while it writes the new
+    one (a thread per column and node made them in ``z``, read ``p`` ``k`` times, and a second
+    kernel copied them to ``p``: 1024 Diamonds on the H200, 64 us a launch against 137 + 62).
+    Launched over the nodes; cached per ``k = columns``."""
+    if columns in _directions:
+        return _directions[columns]
+    K = columns
+    Vs = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
+
+    @wp.kernel(module="unique")
+    def block_direction(z: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d),
+                        world: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
+                        wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64)):
+        i = wp.tid()
+        w = world[i]
+        if not running(wdone, w):
+            return
+        old = Vs()
+        for b in range(K):
+            pb = p[b, i]
+            for c in range(3):
+                old[b, c] = pb[c]
+        for a in range(K):
+            if live(scal, a, w):
+                new = z[a, i]
+                for b in range(K):
+                    beta = coef[w, BETA, b, a]
+                    if beta != wp.float64(0.0):
+                        new += beta * wp.vec3d(old[b, 0], old[b, 1], old[b, 2])
+                p[a, i] = new
+
+    _directions[columns] = block_direction
+    return block_direction
 
 
-@wp.kernel
-def block_scalars(scal: wp.array3d(dtype=wp.float64), g: wp.array4d(dtype=wp.float64), tolerance: wp.float64,
-                  max_iterations: int, advance: int, hold: wp.array(dtype=wp.float64), k: int,
-                  wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64),
-                  info: wp.array(dtype=wp.int32), active: wp.array(dtype=wp.int32)):
-    """One thread per world, after an iteration (``advance = 1``: ``beta = G_RZ^-1 G_RZ_new``, roll
-    the accumulators over, count it) or after the start (``advance = 0``). A world whose live
-    columns all have ``|r| <= tolerance |b|`` is done, and all its columns are marked done (the
-    products skip them); one with iterations left and a column above sets ``active``; a
-    non-finite value stops it and raises ``info[NONFINITE]``. ``hold[w] = 0`` (``hold`` of
-    shape ``(worlds,)``, or empty): not solved; at the start its columns are marked done, keep
-    their start, and read as converged."""
-    w = wp.tid()
-    if advance == 0:
-        wdone[w] = 0
-        if hold.shape[0] > 0:
-            if hold[w] == wp.float64(0.0):
-                wdone[w] = 1
-                for c in range(k):
-                    scal[c, w, DONE] = wp.float64(1.0)
-                    scal[c, w, R2_LAST] = wp.float64(0.0)
-                return
-        for c in range(k):
-            if not live(scal, c, w):
-                scal[c, w, DONE] = wp.float64(1.0)  # (a column left out: the products skip it)
-    if wdone[w] != 0:
-        return
-    finite = wp.int32(1)
-    if advance != 0:
-        beta = solve_small(load(g, w, G_RZ, k), load(g, w, G_RZ_NEW, k), k)
-        store(beta, coef, w, BETA, k)
+_small = {}
+
+
+def small_kernels(columns: int):
+    """``(block_alpha, block_scalars)`` for ``k <= columns`` columns: a thread per world, whose
+    ``k x k`` matrices (the Gram matrices, ``alpha``, ``beta`` and the Cholesky factor) are local
+    arrays of ``columns x columns`` (of :data:`MAX_COLUMNS` each, the two kernels took 146 and
+    178 us a launch for 1024 Diamonds' 5 columns on the H200, against 50 and 73). Cached per
+    ``columns``."""
+    if columns in _small:
+        return _small[columns]
+    Small = wp.types.matrix(shape=(columns, columns), dtype=wp.float64)  # a world's k x k, local
+    Diagonal = wp.types.vector(length=columns, dtype=wp.float64)
+    Flags = wp.types.vector(length=columns, dtype=wp.int32)
+
+    @wp.func
+    def load(g: wp.array4d(dtype=wp.float64), w: int, slot: int, k: int) -> Small:
+        """``g[w, slot]`` (its upper half filled) as a symmetric local matrix."""
+        m = Small()
+        for a in range(k):
+            for b in range(a, k):
+                v = g[w, slot, a, b]
+                m[a, b] = v
+                m[b, a] = v
+        return m
+
+    @wp.func
+    def solve_small(g: Small, rhs: Small, k: int) -> Small:
+        """``G^-1 rhs`` for the symmetric positive semi-definite ``G = g`` (``k x k`` of local
+        matrices, in registers or local memory: this thread's alone). Cholesky of
+        ``D^-1/2 G D^-1/2`` (``D`` its diagonal); a pivot below :data:`DEPENDENT`, or a zero diagonal
+        (a column left out), drops its row and column, and that row of the solution is 0 (its
+        direction is not taken). One direction alone is CG's own quotient."""
+        out = Small()
+        d = Diagonal()
+        keep = Flags()
+        kept = wp.int32(0)
+        only = wp.int32(0)
+        for a in range(k):
+            if g[a, a] > wp.float64(0.0):
+                keep[a] = 1
+                d[a] = wp.sqrt(g[a, a])
+                kept += 1
+                only = a
+        if kept == 1:
+            for col in range(k):
+                out[only, col] = rhs[only, col] / g[only, only]
+        if kept <= 1:
+            return out
+        lw = Small()
+        for j in range(k):  # the scaled factor, column by column (lower triangle)
+            if keep[j] == 0:
+                continue
+            for i in range(j, k):
+                if keep[i] == 0:
+                    continue
+                s = g[i, j] / (d[j] * d[i])
+                for m in range(j):
+                    if keep[m] != 0:
+                        s -= lw[i, m] * lw[j, m]
+                if i == j:
+                    if s <= DEPENDENT:
+                        keep[j] = 0
+                        break
+                    lw[j, j] = wp.sqrt(s)
+                else:
+                    lw[i, j] = s / lw[j, j]
+        for col in range(k):  # each right-hand side: forward and back substitution, scaled
+            for i in range(k):
+                if keep[i] == 0:
+                    continue
+                s = rhs[i, col] / d[i]
+                for m in range(i):
+                    if keep[m] != 0:
+                        s -= lw[i, m] * out[m, col]
+                out[i, col] = s / lw[i, i]
+            for ii in range(k):
+                i = k - 1 - ii
+                if keep[i] == 0:
+                    continue
+                s = out[i, col]
+                for m in range(i + 1, k):
+                    if keep[m] != 0:
+                        s -= lw[m, i] * out[m, col]
+                out[i, col] = s / lw[i, i]
+            for i in range(k):
+                if keep[i] != 0:
+                    out[i, col] = out[i, col] / d[i]
+        return out
+
+    @wp.func
+    def store(m: Small, coef: wp.array4d(dtype=wp.float64), w: int, slot: int, k: int):
+        """``coef[w, slot] = m`` (``k x k``)."""
         for a in range(k):
             for b in range(k):
-                g[w, G_RZ, a, b] = g[w, G_RZ_NEW, a, b]
-                g[w, G_RZ_NEW, a, b] = wp.float64(0.0)
-                g[w, G_PAP, a, b] = wp.float64(0.0)
-                if not wp.isfinite(beta[a, b]) or not wp.isfinite(coef[w, ALPHA, a, b]):
-                    finite = 0
-    converged = wp.int32(1)
-    its = wp.int32(0)
-    for c in range(k):
-        if not wp.isfinite(scal[c, w, B2]):  # (a NaN right-hand side is no column left out)
-            finite = 0
-        if not live(scal, c, w):
-            continue
+                coef[w, slot, a, b] = m[a, b]
+
+    @wp.kernel(module="unique")
+    def block_alpha(g: wp.array4d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), k: int,
+                    coef: wp.array4d(dtype=wp.float64), active: wp.array(dtype=wp.int32)):
+        """One thread per world: ``alpha = G_PAP^-1 G_RZ``; clears the loop flag, which
+        :func:`block_scalars` sets again while a world still has to run."""
+        w = wp.tid()
+        if w == 0:
+            active[0] = 0
+        if not running(wdone, w):
+            return
+        store(solve_small(load(g, w, G_PAP, k), load(g, w, G_RZ, k), k), coef, w, ALPHA, k)
+
+    @wp.kernel(module="unique")
+    def block_scalars(scal: wp.array3d(dtype=wp.float64), g: wp.array4d(dtype=wp.float64), tolerance: wp.float64,
+                      max_iterations: int, advance: int, hold: wp.array(dtype=wp.float64), k: int,
+                      wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64),
+                      info: wp.array(dtype=wp.int32), active: wp.array(dtype=wp.int32)):
+        """One thread per world, after an iteration (``advance = 1``: ``beta = G_RZ^-1 G_RZ_new``, roll
+        the accumulators over, count it) or after the start (``advance = 0``). A world whose live
+        columns all have ``|r| <= tolerance |b|`` is done, and all its columns are marked done (the
+        products skip them); one with iterations left and a column above sets ``active``; a
+        non-finite value stops it and raises ``info[NONFINITE]``. ``hold[w] = 0`` (``hold`` of
+        shape ``(worlds,)``, or empty): not solved; at the start its columns are marked done, keep
+        their start, and read as converged."""
+        w = wp.tid()
+        if advance == 0:
+            wdone[w] = 0
+            if hold.shape[0] > 0:
+                if hold[w] == wp.float64(0.0):
+                    wdone[w] = 1
+                    for c in range(k):
+                        scal[c, w, DONE] = wp.float64(1.0)
+                        scal[c, w, R2_LAST] = wp.float64(0.0)
+                    return
+            for c in range(k):
+                if not live(scal, c, w):
+                    scal[c, w, DONE] = wp.float64(1.0)  # (a column left out: the products skip it)
+        if wdone[w] != 0:
+            return
+        finite = wp.int32(1)
         if advance != 0:
-            scal[c, w, R2_LAST] = scal[c, w, R2]
-            scal[c, w, ITS] = scal[c, w, ITS] + wp.float64(1.0)
-        scal[c, w, R2] = wp.float64(0.0)
-        r2 = scal[c, w, R2_LAST]
-        its = wp.int32(scal[c, w, ITS])
-        if not wp.isfinite(r2):
-            finite = 0
-        elif r2 > tolerance * tolerance * scal[c, w, B2]:
-            converged = 0
-    wp.atomic_max(info, ITERATIONS, its)
-    if finite == 0:
-        info[NONFINITE] = 1
-        converged = 1
-    if converged != 0 or its >= max_iterations:
-        wdone[w] = 1
+            beta = solve_small(load(g, w, G_RZ, k), load(g, w, G_RZ_NEW, k), k)
+            store(beta, coef, w, BETA, k)
+            for a in range(k):
+                for b in range(k):
+                    g[w, G_RZ, a, b] = g[w, G_RZ_NEW, a, b]
+                    g[w, G_RZ_NEW, a, b] = wp.float64(0.0)
+                    g[w, G_PAP, a, b] = wp.float64(0.0)
+                    if not wp.isfinite(beta[a, b]) or not wp.isfinite(coef[w, ALPHA, a, b]):
+                        finite = 0
+        converged = wp.int32(1)
+        its = wp.int32(0)
         for c in range(k):
-            scal[c, w, DONE] = wp.float64(1.0)
-    else:
-        active[0] = 1
+            if not wp.isfinite(scal[c, w, B2]):  # (a NaN right-hand side is no column left out)
+                finite = 0
+            if not live(scal, c, w):
+                continue
+            if advance != 0:
+                scal[c, w, R2_LAST] = scal[c, w, R2]
+                scal[c, w, ITS] = scal[c, w, ITS] + wp.float64(1.0)
+            scal[c, w, R2] = wp.float64(0.0)
+            r2 = scal[c, w, R2_LAST]
+            its = wp.int32(scal[c, w, ITS])
+            if not wp.isfinite(r2):
+                finite = 0
+            elif r2 > tolerance * tolerance * scal[c, w, B2]:
+                converged = 0
+        wp.atomic_max(info, ITERATIONS, its)
+        if finite == 0:
+            info[NONFINITE] = 1
+            converged = 1
+        if converged != 0 or its >= max_iterations:
+            wdone[w] = 1
+            for c in range(k):
+                scal[c, w, DONE] = wp.float64(1.0)
+        else:
+            active[0] = 1
+
+    _small[columns] = (block_alpha, block_scalars)
+    return _small[columns]
 
 
-def launch_pairs(kernel, pairs: int, nodes: int, inputs: list, device) -> None:
-    """Launch :func:`gram` over ``(pairs, node blocks)``, ``NODES_PER_BLOCK`` threads each."""
+def launch_blocks(kernel, nodes: int, inputs: list, device) -> None:
+    """Launch a kernel of node blocks (:func:`gram_kernel`, :func:`block_update_kernel`) over
+    ``nodes``, ``NODES_PER_BLOCK`` threads a block."""
     blocks = -(-nodes // NODES_PER_BLOCK)
-    wp.launch_tiled(kernel, dim=(pairs, blocks), inputs=inputs, block_dim=NODES_PER_BLOCK, device=device)
+    wp.launch_tiled(kernel, dim=(blocks,), inputs=inputs, block_dim=NODES_PER_BLOCK, device=device)

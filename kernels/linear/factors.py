@@ -21,25 +21,67 @@ from .cg import DONE
 _kernels = {}
 
 
-def rotate_in_scaled(dtype):
-    """``rotate_in(r, q_rot, mask, node_world, inv_scale, u)`` over ``(k, n)``:
-    ``u[3 i + a, c] = (inv_scale[w] mask_i Q_i^T r[c, i])_a`` in precision ``dtype`` (world ``w``'s system
-    is ``s_w`` times its factor's: ``(s_w A)^-1 = A^-1 / s_w``)."""
-    key = ("rotate_in", dtype)
+def rotate_in_scaled(dtype, columns: int):
+    """``rotate_in(r, q_rot, mask, node_world, inv_scale, scal, u)``, a thread per node:
+    ``u[3 i + a, c] = (inv_scale[w] mask_i Q_i^T r[c, i])_a`` for the ``k = columns`` columns,
+    in precision ``dtype`` (world ``w``'s system is ``s_w`` times its factor's: ``(s_w A)^-1 =
+    A^-1 / s_w``). A thread writes its node's ``3 k`` numbers, which lie side by side, and reads
+    its rotation once (a thread per column and node wrote 3 numbers ``3 k`` apart and read the
+    rotation ``k`` times: for 1024 Diamonds' 5 columns on the H200, 130 us a launch against 595,
+    the step's mean). A world whose columns all converged is skipped, as the levels skip it."""
+    key = ("rotate_in", dtype, columns)
     if key in _kernels:
         return _kernels[key]
+    K = columns
+    running, _ = _row_funcs(columns, dtype)
 
     @wp.kernel(module="unique")
     def factor_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
                          mask: wp.array(dtype=wp.vec3d), node_world: wp.array(dtype=wp.int32),
-                         inv_scale: wp.array(dtype=dtype), u: wp.array2d(dtype=dtype)):
-        c, i = wp.tid()
-        v = wp.float64(inv_scale[node_world[i]]) * wp.cw_mul(mask[i], wp.transpose(q_rot[i]) * r[c, i])
-        for a in range(3):
-            u[3 * i + a, c] = dtype(v[a])
+                         inv_scale: wp.array(dtype=dtype), scal: wp.array3d(dtype=wp.float64),
+                         u: wp.array2d(dtype=dtype)):
+        i = wp.tid()
+        w = node_world[i]
+        if not running(scal, w):
+            return
+        qt = wp.transpose(q_rot[i])
+        m = wp.float64(inv_scale[w]) * mask[i]
+        for c in range(K):
+            v = wp.cw_mul(m, qt * r[c, i])
+            for a in range(3):
+                u[3 * i + a, c] = dtype(v[a])
 
     _kernels[key] = factor_rotate_in
     return factor_rotate_in
+
+
+def rotate_out(dtype, columns: int):
+    """``rotate_out(x, q_rot, mask, node_world, scal, z)``, a thread per node: ``z[c, i] = mask_i
+    Q_i x[3 i:3 i + 3, c]`` for the ``k = columns`` columns; it reads its node's ``3 k`` numbers
+    side by side and its rotation once (a thread per column and node: 1024 Diamonds on the H200,
+    68 us a launch against 320). A world whose columns all converged is skipped (its ``z``
+    is no longer read)."""
+    key = ("rotate_out", dtype, columns)
+    if key in _kernels:
+        return _kernels[key]
+    K = columns
+    running, _ = _row_funcs(columns, dtype)
+
+    @wp.kernel(module="unique")
+    def factor_rotate_out(x: wp.array2d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
+                          mask: wp.array(dtype=wp.vec3d), node_world: wp.array(dtype=wp.int32),
+                          scal: wp.array3d(dtype=wp.float64), z: wp.array2d(dtype=wp.vec3d)):
+        i = wp.tid()
+        if not running(scal, node_world[i]):
+            return
+        q = q_rot[i]
+        m = mask[i]
+        for c in range(K):
+            v = wp.vec3d(wp.float64(x[3 * i, c]), wp.float64(x[3 * i + 1, c]), wp.float64(x[3 * i + 2, c]))
+            z[c, i] = wp.cw_mul(m, q * v)
+
+    _kernels[key] = factor_rotate_out
+    return factor_rotate_out
 
 
 def _row_funcs(columns: int, dtype):

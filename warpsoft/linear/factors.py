@@ -33,7 +33,6 @@ import warp as wp
 from threadpoolctl import threadpool_limits
 
 from warpsoft.kernels.linear import factors as kernels
-from warpsoft.kernels.linear import warped as rotations
 
 from ..errors import SceneError
 from ..launch import launch
@@ -244,8 +243,8 @@ class WorldFactors(WorldGroups):
         fixed DOFs 0."""
         m, d = self.op.model, self.op.model.device
         k = r.shape[0]
-        launch(kernels.rotate_in_scaled(self.dtype), r.shape,
-               inputs=[r, self.q_rot, m.mask, m.node_world, self.inv_scale], outputs=[self.u], device=d)
+        launch(kernels.rotate_in_scaled(self.dtype, k), m.num_nodes,
+               inputs=[r, self.q_rot, m.mask, m.node_world, self.inv_scale, self._done], outputs=[self.u], device=d)
         level = kernels.level_kernel(k, self.dtype, self.width)
         lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes)
         for (tasks, col, val, levels), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x), strict=True):
@@ -255,6 +254,6 @@ class WorldFactors(WorldGroups):
                     wp.launch_tiled(lanes, dim=[count], inputs=inputs, outputs=[out], block_dim=self.lanes, device=d)
                 else:
                     launch(level, count, inputs=inputs, outputs=[out], device=d)
-        _, rotate_out = rotations.flat_rotations(self.dtype)
-        launch(rotate_out, r.shape, inputs=[self.x, self.q_rot, m.mask], outputs=[z], device=d)
+        launch(kernels.rotate_out(self.dtype, k), m.num_nodes,
+               inputs=[self.x, self.q_rot, m.mask, m.node_world, self._done], outputs=[z], device=d)
 

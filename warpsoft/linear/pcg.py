@@ -90,9 +90,6 @@ class PCG:
         self.block = bool(block) and 1 < shape[0] <= blockk.MAX_COLUMNS
         if self.block:
             k, worlds = shape[0], m.num_worlds
-            pairs = [(a, b) for a in range(k) for b in range(a, k)]
-            self.pair_a = wp.array([a for a, _ in pairs], dtype=wp.int32, device=m.device)
-            self.pair_b = wp.array([b for _, b in pairs], dtype=wp.int32, device=m.device)
             self.gram = wp.zeros((worlds, blockk.NUM_GRAMS, k, k), dtype=wp.float64, device=m.device)
             self.coef = wp.zeros((worlds, 2, k, k), dtype=wp.float64, device=m.device)
             self.wdone = wp.zeros(worlds, dtype=wp.int32, device=m.device)
@@ -234,25 +231,23 @@ class PCG:
         k, n = x.shape
         self.op.apply(self.p, self.ap, self.scal)  # the worlds done are skipped, here and below
         self._gram(self.p, self.ap, blockk.G_PAP)
-        launch(blockk.block_alpha, m.num_worlds, inputs=[self.gram, self.wdone, k],
+        launch(blockk.small_kernels(k)[0], m.num_worlds, inputs=[self.gram, self.wdone, k],
                outputs=[self.coef, self.active], device=d)
-        kernels.launch_nodes(blockk.block_update, k, n, [x, self.r, self.p, self.ap, m.mask, m.node_world, self.scal,
-                                                         self.wdone, self.coef], d)
+        blockk.launch_blocks(blockk.block_update_kernel(k), n, [x, self.r, self.p, self.ap, m.mask, m.node_world,
+                                                               self.scal, self.wdone, self.coef], d)
         self.precond.apply(self.r, self.z)
         self._gram(self.r, self.z, blockk.G_RZ_NEW)
         self._block_scalars(1)
-        launch(blockk.block_direction, (k, n), inputs=[self.z, self.p, m.node_world, self.scal, self.wdone, self.coef],
-               device=d)
-        launch(blockk.take_direction, (k, n), inputs=[self.z, self.p, m.node_world, self.scal, self.wdone], device=d)
+        launch(blockk.block_direction_kernel(k), n, inputs=[self.z, self.p, m.node_world, self.scal, self.wdone,
+                                                            self.coef], device=d)
 
     def _gram(self, u: wp.array, v: wp.array, slot: int) -> None:
         m = self.op.model
-        blockk.launch_pairs(blockk.gram, self.pair_a.shape[0], m.num_nodes,
-                            [u, v, m.mask, self.pair_a, self.pair_b, m.node_world, self.scal, self.wdone, slot,
-                             self.gram], m.device)
+        blockk.launch_blocks(blockk.gram_kernel(u.shape[0]), m.num_nodes,
+                             [u, v, m.mask, m.node_world, self.scal, self.wdone, slot, self.gram], m.device)
 
     def _block_scalars(self, advance: int) -> None:
-        launch(blockk.block_scalars, self.op.model.num_worlds,
+        launch(blockk.small_kernels(self.r.shape[0])[1], self.op.model.num_worlds,
                inputs=[self.scal, self.gram, self.tolerance, self.max_iterations, advance, self.held, self.r.shape[0]],
                outputs=[self.wdone, self.coef, self.info, self.active],
                device=self.op.model.device)
