@@ -82,8 +82,8 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
     if pre is not None and getattr(pre, "capturable", False):  # a CG iteration's two big products, alone
         solver = sim.solver
         solver.scal.zero_()  # no world done: the product runs for all of them
-        parts = {"precond_ms": 1e3 * _median_call(lambda: pre.apply(solver.r, solver.z), sim.model.device),
-                 "operator_ms": 1e3 * _median_call(lambda: sim.operator.apply(solver.p, solver.ap), sim.model.device)}
+        parts |= {"precond_ms": 1e3 * _median_call(lambda: pre.apply(solver.r, solver.z), sim.model.device),
+                  "operator_ms": 1e3 * _median_call(lambda: sim.operator.apply(solver.p, solver.ap), sim.model.device)}
         if sim.operator.blocks is not None:  # the assembled operator's refresh, at each linearization
             parts["assemble_ms"] = 1e3 * _median_call(lambda: sim.operator.linearized(), sim.model.device)
     if sim.timing and sim.model.device.is_cuda:  # the graphs' own time (synchronized), the rest is the host's
