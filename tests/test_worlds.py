@@ -86,7 +86,10 @@ def test_three_dynamic_robots_step_as_alone(scene_module, solver, qp, preconditi
 def assert_own_iterations(alone, together):
     """Each world's CG iterations are its own, the same as alone, also in a step where another
     world iterated Newton: a world held in place is not solved again (not even its compliance
-    columns). Returns the steps where some worlds iterated and others did not."""
+    columns: a solve's worth of iterations more). The first world's exactly; the others' to
+    within two: the residual norms are summed by blocks of 256 nodes, which straddle the worlds
+    in a batch, so that the round-off differs from the run alone and moves a count near the
+    tolerance by one or two. Returns the steps where some worlds iterated and others did not."""
     mixed = 0
     for k, step in enumerate(together):
         counts = {mine.newton_iterations for mine in step.worlds}
@@ -94,7 +97,7 @@ def assert_own_iterations(alone, together):
         for w, mine in enumerate(step.worlds):
             own = alone[w][k]
             assert mine.newton_iterations == own.newton_iterations
-            assert mine.cg_iterations == own.cg_iterations, (k, w)
+            assert abs(mine.cg_iterations - own.cg_iterations) <= (0 if w == 0 else 2), (k, w)
     return mixed
 
 

@@ -22,7 +22,7 @@ sides then share one direction instead of breaking the factorization.
 import warp as wp
 
 from .cg import B2, DONE, ITS, R2, R2_LAST
-from .pcg import ITERATIONS, NODES_PER_BLOCK, NONFINITE, block_world
+from .pcg import ITERATIONS, NODES_PER_BLOCK, NONFINITE
 
 MAX_COLUMNS = 16  # a block holds at most this many right-hand sides (k^2 / 2 reductions an iteration)
 G_PAP = wp.constant(0)  # gram[w, G_PAP]: P^T A P
@@ -52,11 +52,14 @@ _grams = {}
 def gram_kernel(columns: int):
     """``out[w, slot, a, b] += sum_i u[a, i] . (mask v[b, i])`` over the pairs ``a <= b`` of
     the ``k = columns`` columns (:func:`load` mirrors the other half), in the running worlds,
-    between live columns; launched over node blocks (:func:`launch_blocks`). A thread reads its
-    node's ``2 k`` vectors once and adds the ``k (k + 1) / 2`` products, where a launch per pair
-    read 2 vectors a pair (``k + 1`` times the bytes: for the 5 columns of 1024 Diamonds on the
-    H200, 210 us a Gram matrix against 395, the step's mean). Cached per ``k`` (a compile-time constant: the sums
-    live in registers)."""
+    between live columns. A block of threads per world (:func:`launch_worlds`, ``world_start``
+    its first node, ``(worlds + 1,)``): each thread reads its nodes' ``2 k`` vectors once and adds
+    the ``k (k + 1) / 2`` products; the block then sums each product once (a launch per pair read
+    2 vectors a pair, ``k + 1`` times the bytes: for the 5 columns of 1024 Diamonds on the H200,
+    395 us a Gram matrix, the step's mean; 178-210 with a thread a node over blocks of 256 nodes,
+    which summed their 15 products 6 times a world; 63 us now). A converged world's block returns
+    at once.
+    Cached per ``k`` (a compile-time constant: the sums live in registers)."""
     if columns in _grams:
         return _grams[columns]
     K = columns
@@ -66,22 +69,17 @@ def gram_kernel(columns: int):
 
     @wp.kernel(module="unique")
     def gram_pairs(u: wp.array2d(dtype=wp.vec3d), v: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d),
-                   world: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
+                   world_start: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
                    wdone: wp.array(dtype=wp.int32), slot: int, out: wp.array4d(dtype=wp.float64)):
-        blk, lane = wp.tid()
-        i0, i1, w, uniform = block_world(blk, u.shape[1], world)
-        s = Sums()
-        skip = uniform and not running(wdone, w)  # (the same for the block's threads)
-        i = i0 + lane
-        if skip:
-            i = i1
-        while i < i1:
-            wi = world[i]
-            if running(wdone, wi):
+        w, lane = wp.tid()
+        if running(wdone, w):  # (the same for the block's threads)
+            s = Sums()
+            i = world_start[w] + lane
+            while i < world_start[w + 1]:
                 m = mask[i]
                 vs = Vs()
                 for b in range(K):
-                    if live(scal, b, wi):
+                    if live(scal, b, w):
                         vb = wp.cw_mul(m, v[b, i])
                         vs[b, 0] = vb[0]
                         vs[b, 1] = vb[1]
@@ -89,23 +87,18 @@ def gram_kernel(columns: int):
                 q = wp.int32(0)
                 for a in range(K):
                     ua = wp.vec3d()
-                    if live(scal, a, wi):
+                    if live(scal, a, w):
                         ua = u[a, i]
                     for b in range(a, K):
-                        value = ua[0] * vs[b, 0] + ua[1] * vs[b, 1] + ua[2] * vs[b, 2]
-                        if uniform:
-                            s[q] = s[q] + value
-                        else:
-                            wp.atomic_add(out, wi, slot, a, b, value)
+                        s[q] = s[q] + ua[0] * vs[b, 0] + ua[1] * vs[b, 1] + ua[2] * vs[b, 2]
                         q += 1
-            i += wp.block_dim()
-        if uniform and not skip:
+                i += wp.block_dim()
             q = wp.int32(0)
             for a in range(K):
                 for b in range(a, K):
                     total = wp.tile_sum(wp.tile(s[q]))
                     if lane == 0:
-                        wp.atomic_add(out, w, slot, a, b, total[0])
+                        out[w, slot, a, b] = out[w, slot, a, b] + total[0]
                     q += 1
 
     _grams[columns] = gram_pairs
@@ -118,10 +111,10 @@ _updates = {}
 def block_update_kernel(columns: int):
     """``x[a] += sum_b p[b] alpha[b, a]``, ``r[a] -= P(sum_b A p[b] alpha[b, a])`` (``P`` the
     projection on the free DOFs) for the live columns ``a`` of the running worlds; accumulates
-    ``r.r`` into ``scal[a, w, R2]``. A thread per node reads its ``2 k`` vectors of ``p`` and
-    ``A p`` once (a thread per column and node read them ``k`` times: on the H200, 1024
-    Diamonds' 5 columns, 360 us a launch against 431). Launched over node blocks (:func:`launch_blocks`);
-    cached per ``k = columns``."""
+    ``r.r`` into ``scal[a, w, R2]``. A block of threads per world (:func:`launch_worlds`), each
+    thread reading its nodes' ``2 k`` vectors of ``p`` and ``A p`` once (a thread per column and
+    node read them ``k`` times: on the H200, 1024 Diamonds' 5 columns, 431 us a launch; 304-360
+    with a thread a node over blocks of 256 nodes; 240 now). Cached per ``k = columns``."""
     if columns in _updates:
         return _updates[columns]
     K = columns
@@ -130,19 +123,14 @@ def block_update_kernel(columns: int):
 
     @wp.kernel(module="unique")
     def block_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d),
-                     ap: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d), world: wp.array(dtype=wp.int32),
-                     scal: wp.array3d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32),
-                     coef: wp.array4d(dtype=wp.float64)):
-        blk, lane = wp.tid()
-        i0, i1, w, uniform = block_world(blk, r.shape[1], world)
-        rr = Rs()
-        skip = uniform and not running(wdone, w)  # (the same for the block's threads)
-        i = i0 + lane
-        if skip:
-            i = i1
-        while i < i1:
-            wi = world[i]
-            if running(wdone, wi):
+                     ap: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d),
+                     world_start: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
+                     wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64)):
+        w, lane = wp.tid()
+        if running(wdone, w):  # (the same for the block's threads)
+            rr = Rs()
+            i = world_start[w] + lane
+            while i < world_start[w + 1]:
                 ps = Vs()
                 aps = Vs()
                 for b in range(K):
@@ -153,27 +141,23 @@ def block_update_kernel(columns: int):
                         aps[b, c] = apb[c]
                 m = mask[i]
                 for a in range(K):
-                    if live(scal, a, wi):
+                    if live(scal, a, w):
                         dx = wp.vec3d()
                         dr = wp.vec3d()
                         for b in range(K):
-                            alpha = coef[wi, ALPHA, b, a]
+                            alpha = coef[w, ALPHA, b, a]
                             if alpha != wp.float64(0.0):  # (a direction dropped: none of its p is read)
                                 dx += alpha * wp.vec3d(ps[b, 0], ps[b, 1], ps[b, 2])
                                 dr += alpha * wp.vec3d(aps[b, 0], aps[b, 1], aps[b, 2])
                         x[a, i] = x[a, i] + dx
                         ri = r[a, i] - wp.cw_mul(m, dr)
                         r[a, i] = ri
-                        if uniform:
-                            rr[a] = rr[a] + wp.dot(ri, ri)
-                        else:
-                            wp.atomic_add(scal, a, wi, R2, wp.dot(ri, ri))
-            i += wp.block_dim()
-        if uniform and not skip:
+                        rr[a] = rr[a] + wp.dot(ri, ri)
+                i += wp.block_dim()
             for a in range(K):
                 total = wp.tile_sum(wp.tile(rr[a]))
                 if lane == 0:
-                    wp.atomic_add(scal, a, w, R2, total[0])
+                    scal[a, w, R2] = scal[a, w, R2] + total[0]
 
     _updates[columns] = block_update
     return block_update
@@ -398,8 +382,7 @@ def small_kernels(columns: int):
     return _small[columns]
 
 
-def launch_blocks(kernel, nodes: int, inputs: list, device) -> None:
-    """Launch a kernel of node blocks (:func:`gram_kernel`, :func:`block_update_kernel`) over
-    ``nodes``, ``NODES_PER_BLOCK`` threads a block."""
-    blocks = -(-nodes // NODES_PER_BLOCK)
-    wp.launch_tiled(kernel, dim=(blocks,), inputs=inputs, block_dim=NODES_PER_BLOCK, device=device)
+def launch_worlds(kernel, worlds: int, inputs: list, device) -> None:
+    """Launch a kernel of a block per world (:func:`gram_kernel`, :func:`block_update_kernel`),
+    ``NODES_PER_BLOCK`` threads a block."""
+    wp.launch_tiled(kernel, dim=(worlds,), inputs=inputs, block_dim=NODES_PER_BLOCK, device=device)

@@ -93,6 +93,7 @@ class PCG:
             self.gram = wp.zeros((worlds, blockk.NUM_GRAMS, k, k), dtype=wp.float64, device=m.device)
             self.coef = wp.zeros((worlds, 2, k, k), dtype=wp.float64, device=m.device)
             self.wdone = wp.zeros(worlds, dtype=wp.int32, device=m.device)
+            self.world_start = wp.array(m.world_node_start, dtype=wp.int32, device=m.device)  # (worlds + 1,)
 
     def bound(self, count: wp.array, offset: int = 0) -> None:
         """Solve only the right-hand sides ``c < offset + count[0]`` (``count`` an int32 device array
@@ -233,8 +234,9 @@ class PCG:
         self._gram(self.p, self.ap, blockk.G_PAP)
         launch(blockk.small_kernels(k)[0], m.num_worlds, inputs=[self.gram, self.wdone, k],
                outputs=[self.coef, self.active], device=d)
-        blockk.launch_blocks(blockk.block_update_kernel(k), n, [x, self.r, self.p, self.ap, m.mask, m.node_world,
-                                                               self.scal, self.wdone, self.coef], d)
+        blockk.launch_worlds(blockk.block_update_kernel(k), m.num_worlds, [x, self.r, self.p, self.ap, m.mask,
+                                                                          self.world_start, self.scal, self.wdone,
+                                                                          self.coef], d)
         self.precond.apply(self.r, self.z)
         self._gram(self.r, self.z, blockk.G_RZ_NEW)
         self._block_scalars(1)
@@ -243,8 +245,8 @@ class PCG:
 
     def _gram(self, u: wp.array, v: wp.array, slot: int) -> None:
         m = self.op.model
-        blockk.launch_blocks(blockk.gram_kernel(u.shape[0]), m.num_nodes,
-                             [u, v, m.mask, m.node_world, self.scal, self.wdone, slot, self.gram], m.device)
+        blockk.launch_worlds(blockk.gram_kernel(u.shape[0]), m.num_worlds,
+                             [u, v, m.mask, self.world_start, self.scal, self.wdone, slot, self.gram], m.device)
 
     def _block_scalars(self, advance: int) -> None:
         launch(blockk.small_kernels(self.r.shape[0])[1], self.op.model.num_worlds,
