@@ -91,20 +91,15 @@ class Corotational:
         blocks ``contributions[slot_start[s]:slot_start[s + 1]]`` (indexes as in :meth:`blocks`).
         Returns False where the element model has no such kernel (the caller stores the blocks)."""
         m, g = self.model, self.group
-        if getattr(self.kernels, "rotated_gradients", None) is not None:  # the gradients once, then the slots
-            if self._gradients is None:
-                self._gradients = (wp.zeros(4 * g.count, dtype=wp.vec3d, device=m.device),
-                                   wp.zeros(g.count, dtype=wp.vec2d, device=m.device))
-            launch(self.kernels.rotated_gradients, g.count, inputs=self._tangent(rot), outputs=list(self._gradients),
-                   device=m.device)
-            launch(self.kernels.stiffness_slots_from, len(values), inputs=[*self._gradients, slot_start, contributions],
-                   outputs=[values], device=m.device)
-            return True
-        kernel = getattr(self.kernels, "stiffness_slots", None)
-        if kernel is None:
+        if getattr(self.kernels, "rotated_gradients", None) is None:
             return False
-        launch(kernel, len(values), inputs=[*self._tangent(rot), slot_start, contributions], outputs=[values],
+        if self._gradients is None:  # each element's rotated gradients, then the slots read them
+            self._gradients = (wp.zeros(4 * g.count, dtype=wp.vec3d, device=m.device),
+                               wp.zeros(g.count, dtype=wp.vec2d, device=m.device))
+        launch(self.kernels.rotated_gradients, g.count, inputs=self._tangent(rot), outputs=list(self._gradients),
                device=m.device)
+        launch(self.kernels.stiffness_slots_from, len(values), inputs=[*self._gradients, slot_start, contributions],
+               outputs=[values], device=m.device)
         return True
 
     def node_rotations(self, rot: wp.array, node_sum: wp.array) -> None:

@@ -98,10 +98,12 @@ class AssembledBlocks:
         self.values = wp.zeros(self.num_slots, dtype=wp.mat33d, device=d)
         self.no_mass = wp.zeros(0, dtype=wp.float64, device=d)
         groups = elastic.groups
-        can = len(groups) == 1 and hasattr(groups[0].kernels, "stiffness_slots")
+        can = len(groups) == 1 and hasattr(groups[0].kernels, "rotated_gradients")
         self.fused = can and (d.is_cuda if fused is None else bool(fused))
         self.element_blocks = None if self.fused else wp.zeros(len(key), dtype=wp.mat33d, device=d)
-        self.memory_bytes = (4 if self.fused else 76) * len(key) + 80 * self.num_slots + 4 * (n + 1)
+        # per element block: its index (4 bytes) and a 16th of the element's rotated gradients and
+        # moduli (112 bytes) when fused, else the block itself too (72 bytes)
+        self.memory_bytes = (11 if self.fused else 76) * len(key) + 80 * self.num_slots + 4 * (n + 1)
 
     def refresh(self, rot: wp.array) -> None:
         """The blocks of ``K`` at the rotations ``rot`` (the element models' linearization)."""
