@@ -116,6 +116,12 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout):
     skipped = sim.model.node_world_np == 0
     assert np.all(z.numpy()[:, skipped] == 0.0)
     assert np.array_equal(z.numpy()[:, ~skipped], fresh.numpy()[:, ~skipped])
+    # the entries a thread loads together, then sums in order, give the rounding of one at a time
+    scal.zero_()
+    for unroll in (1, 3):
+        pre.unroll = unroll
+        pre.apply(r, z)
+        assert np.array_equal(z.numpy(), fresh.numpy())
 
 
 def test_each_world_steps_as_alone_and_as_with_dense_blocks():

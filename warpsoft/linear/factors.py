@@ -93,7 +93,8 @@ class WorldFactors(WorldGroups):
         m, d = operator.model, operator.model.device
         self.dtype = wp.float64 if precision == "float64" else wp.float32
         rows = 3 * m.num_nodes
-        # the solves' operands, flat (3 nodes, k) in the model's DOF order: input, forward, backward
+        # the solves' operands, flat (3 nodes, k), each world's rows in its factor's order
+        # (``place``): input, forward, backward
         self.u, self.y, self.x = (wp.zeros((rows, self.columns), dtype=self.dtype, device=d) for _ in range(3))
         self.world_row = wp.array((3 * m.world_node_start[:-1]).astype(np.int32), dtype=wp.int32, device=d)
         self.patterns = {}  # mesh -> the lower triangle of its system over its free DOFs
@@ -112,6 +113,8 @@ class WorldFactors(WorldGroups):
         # the other levels' rows, a thread each, in slices of `width` (1: each row's entries one
         # after another, as the CPU's one thread reads them)
         self.width = WIDTH if d.is_cuda else 1
+        self.unroll = kernels.UNROLL  # entries a thread of the levels loads at a time
+        self.place = None  # (3 nodes,) each DOF's row among the operands, made at the first refresh
         self.inv_scale = None
 
     @property
@@ -187,14 +190,21 @@ class WorldFactors(WorldGroups):
 
     def _lay_out(self, programs: list) -> None:
         """The programs of every block on the device: each block's entries once (their columns as
-        DOFs of its world), sliced for ``width`` threads (:func:`~warpsoft.linear.supernodal.sliced`)
-        but in the levels of long rows; each world's tasks (rows as the model's DOFs), sorted by
+        places of its factor), sliced for ``width`` threads (:func:`~warpsoft.linear.supernodal.sliced`)
+        but in the levels of long rows; each world's tasks (rows at its places: ``place``), sorted by
         level. At a later refresh only the entries' values change, in place (a captured graph
         holds them)."""
         m, d = self.op.model, self.op.model.device
         npd = np.float64 if self.dtype == wp.float64 else np.float32
-        # each factor place's DOF in its world's own numbering
-        dof = [self.patterns[self.mesh_of[w]].free[self.orders[b]] for b, w in enumerate(self.first_world)]
+        if self.place is None:
+            # each model DOF's row among the operands: world w's factor place p at 3 n_w + p (the
+            # rows its ordering keeps together lie together), -1 for a fixed DOF
+            place = np.full(3 * m.num_nodes, -1, dtype=np.int32)
+            for w in range(m.num_worlds):
+                b, start = int(self.block_of[w]), 3 * int(m.world_node_start[w])
+                dof = self.patterns[self.mesh_of[w]].free[self.orders[b]]  # the world's DOF at each place
+                place[start + dof] = start + np.arange(len(dof))
+            self.place = wp.array(place, dtype=wp.int32, device=d)
         worlds = np.bincount(self.block_of, minlength=len(programs))
         solves = []
         for direction in range(2):
@@ -215,13 +225,13 @@ class WorldFactors(WorldGroups):
                 self.solves[direction][2].assign(val)
                 continue
             col = np.zeros(offset[-1], dtype=np.int32)
-            for b, (p, s, o) in enumerate(zip(progs, layouts, offset[:-1], strict=True)):
-                col[o + s.place] = dof[b][p.col]
+            for p, s, o in zip(progs, layouts, offset[:-1], strict=True):
+                col[o + s.place] = p.col
             tasks, levels = [], []
             for w in range(m.num_worlds):
                 b = int(self.block_of[w])
                 s = layouts[b]
-                row = np.where(s.row >= 0, 3 * int(m.world_node_start[w]) + dof[b][np.maximum(s.row, 0)], -1)
+                row = np.where(s.row >= 0, 3 * int(m.world_node_start[w]) + s.row, -1)
                 tasks.append(np.column_stack([row, s.start + offset[b]]))
                 levels.append(s.level)
             tasks, levels = np.concatenate(tasks), np.concatenate(levels)
@@ -244,9 +254,10 @@ class WorldFactors(WorldGroups):
         m, d = self.op.model, self.op.model.device
         k = r.shape[0]
         launch(kernels.rotate_in_scaled(self.dtype, k), m.num_nodes,
-               inputs=[r, self.q_rot, m.mask, m.node_world, self.inv_scale, self._done], outputs=[self.u], device=d)
-        level = kernels.level_kernel(k, self.dtype, self.width)
-        lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes)
+               inputs=[r, self.q_rot, m.mask, m.node_world, self.place, self.inv_scale, self._done], outputs=[self.u],
+               device=d)
+        level = kernels.level_kernel(k, self.dtype, self.width, self.unroll)
+        lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes, self.unroll)
         for (tasks, col, val, levels), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x), strict=True):
             for first, count, long in levels:
                 inputs = [tasks, first, col, val, m.node_world, self.world_row, self._done, inp]
@@ -255,5 +266,5 @@ class WorldFactors(WorldGroups):
                 else:
                     launch(level, count, inputs=inputs, outputs=[out], device=d)
         launch(kernels.rotate_out(self.dtype, k), m.num_nodes,
-               inputs=[self.x, self.q_rot, m.mask, m.node_world, self._done], outputs=[z], device=d)
+               inputs=[self.x, self.q_rot, m.mask, m.node_world, self.place, self._done], outputs=[z], device=d)
 
