@@ -1,0 +1,100 @@
+"""Cost of the sparse factors' ``P^-1`` in a batch of different Diamonds (CUDA): at full load, and
+over one solve's sequence of running worlds (those of the last warm-up step: at CG iteration
+``i`` the worlds that took more than ``i``), each replayed from a graph, for each ``--unroll``.
+
+    python tools/bench_levels.py --designs 1024 [--unroll 1 4] [--device cuda] [--out out/levels.json]
+
+The designs are ``batch_bench.py``'s with as many meshes as designs (set WARPSOFT_MESH_CACHE to
+the meshes made ahead of time: meshing 1024 Diamonds takes minutes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import warp as wp
+from warpsoft.kernels.linear.cg import DONE
+
+import warpsoft as ws
+from warpsoft.io.runner import build_scene
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import batch_bench  # noqa: E402
+
+
+def replayed(call, device: str, repeats: int, rounds: int) -> float:
+    """Median time (ms) of ``call`` captured ``repeats`` times in a graph, replayed ``rounds`` times
+    (on the CPU: called ``repeats`` times)."""
+    def calls():
+        for _ in range(repeats):
+            call()
+    run = calls
+    if wp.get_device(device).is_cuda:
+        with wp.ScopedCapture(device=device) as capture:
+            calls()
+        run = lambda: wp.capture_launch(capture.graph)  # noqa: E731
+    times = []
+    for _ in range(rounds):
+        wp.synchronize_device(device)
+        t0 = time.perf_counter()
+        run()
+        wp.synchronize_device(device)
+        times.append((time.perf_counter() - t0) / repeats)
+    return 1e3 * float(np.median(times))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--designs", type=int, default=1024)
+    ap.add_argument("--unroll", type=int, nargs="*", default=[1, 4], help="entries a level's thread loads at a time")
+    ap.add_argument("--warmup", type=int, default=4, help="steps before (their last gives the running worlds)")
+    ap.add_argument("--device", default="cuda", help="cuda (what it is for) or cpu (a check that it runs)")
+    ap.add_argument("--out", default=None, help="a JSON file for the results")
+    args = ap.parse_args(argv)
+    device = args.device
+    t0 = time.perf_counter()
+    designs = batch_bench.designs(args.designs, args.designs)
+    scenes = [build_scene(batch_bench.ROOT / "scenes/diamond.py", d) for d in designs]
+    sim = ws.Simulator(ws.finalize(scenes, device), device=device, solver="pcg", block_cg=True,
+                       preconditioner="factors", share_tolerance=0.01)
+    for _ in range(args.warmup):
+        stats = sim.step()
+    its = np.array([w.cg_iterations for w in stats.worlds])
+    print(f"set up in {time.perf_counter() - t0:.1f} s; worlds by CG iterations: {np.bincount(its).tolist()}",
+          flush=True)
+    m, pre, solver = sim.model, sim.solver.precond, sim.solver
+    k = solver.r.shape[0]
+    rng = np.random.default_rng(0)
+    r = wp.array(rng.standard_normal((k, m.num_nodes, 3)) * m.mask_np, dtype=wp.vec3d, device=device)
+    z = wp.zeros_like(r)
+    masks = []  # per CG iteration: the worlds that still ran
+    for i in range(int(its.max())):
+        s = np.zeros(solver.scal.shape)
+        s[:, its <= i, DONE] = 1.0
+        masks.append(wp.array(s, dtype=wp.float64, device=device))
+    results = []
+    for unroll in args.unroll:
+        pre.unroll = unroll
+        pre._done = masks[0]
+        full = replayed(lambda: pre.apply(r, z), device, 10, 5)
+        sequence = []
+        for mask in masks:
+            pre._done = mask
+            sequence.append(replayed(lambda: pre.apply(r, z), device, 5, 3))
+        results.append({"unroll": unroll, "full_ms": full, "solve_ms": sum(sequence), "sequence_ms": sequence})
+        print(f"unroll {unroll}: P^-1 {full:.3f} ms with every world; a solve's {len(sequence)} {sum(sequence):.2f} ms "
+              f"[{' '.join(f'{t:.2f}' for t in sequence)}]", flush=True)
+    pre._done = solver.scal
+    if args.out:
+        Path(args.out).write_text(json.dumps({"designs": args.designs, "iterations": its.tolist(),
+                                              "results": results}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
