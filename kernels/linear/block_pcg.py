@@ -15,7 +15,7 @@ Vectors are ``(k, n)`` vec3d as in ``pcg.py``; the ``k x k`` matrices of world `
 ``gram[w, slot]`` and ``coef[w, slot]`` (float64). A world's columns run until all of them reach
 the tolerance; a column with ``b = 0`` is left out of its world's block (its solution is 0).
 The small solves go through a Cholesky factor of the Gram matrix scaled to a unit diagonal,
-pivoting out the directions that depend on the others (``DEPENDENT``): two equal right-hand
+pivoting out the directions that depend on the others (:data:`DEPENDENT`): two equal right-hand
 sides then share one direction instead of breaking the factorization.
 """
 
@@ -31,7 +31,14 @@ G_RZ_NEW = wp.constant(2)  # gram[w, G_RZ_NEW]: accumulator for the next R^T Z
 NUM_GRAMS = 3
 ALPHA = wp.constant(0)  # coef[w, ALPHA]
 BETA = wp.constant(1)  # coef[w, BETA]
-DEPENDENT = wp.constant(1e-12)  # a scaled Cholesky pivot below this drops its direction
+# a scaled Cholesky pivot below this drops its direction, by the precision the preconditioner
+# works in: the pivot is the squared sine of the angle between a direction and the span of
+# those before it, and float32 products carry ~1e-7 of rounding. On 16 bars whose four cables
+# run 2 mm apart (nearly equal columns), float32 blocks or factors diverged from step 1 with
+# 1e-12 (its columns' rounding taken for directions: beta up to 1e16) and met NaN at step 2
+# with 1e-6; with 1e-4 they take 2-5 iterations a step, as float64 does with 1e-12
+# (tests/test_block_pcg.py)
+DEPENDENT = {"float64": 1e-12, "float32": 1e-4}
 
 
 @wp.func
@@ -230,10 +237,10 @@ def small_kernels(columns: int):
         return m
 
     @wp.func
-    def solve_small(g: Small, rhs: Small, k: int) -> Small:
+    def solve_small(g: Small, rhs: Small, k: int, dependent: wp.float64) -> Small:
         """``G^-1 rhs`` for the symmetric positive semi-definite ``G = g`` (``k x k`` of local
         matrices, in registers or local memory: this thread's alone). Cholesky of
-        ``D^-1/2 G D^-1/2`` (``D`` its diagonal); a pivot below :data:`DEPENDENT`, or a zero diagonal
+        ``D^-1/2 G D^-1/2`` (``D`` its diagonal); a pivot below ``dependent``, or a zero diagonal
         (a column left out), drops its row and column, and that row of the solution is 0 (its
         direction is not taken). One direction alone is CG's own quotient."""
         out = Small()
@@ -264,7 +271,7 @@ def small_kernels(columns: int):
                     if keep[m] != 0:
                         s -= lw[i, m] * lw[j, m]
                 if i == j:
-                    if s <= DEPENDENT:
+                    if s <= dependent:
                         keep[j] = 0
                         break
                     lw[j, j] = wp.sqrt(s)
@@ -301,7 +308,7 @@ def small_kernels(columns: int):
                 coef[w, slot, a, b] = m[a, b]
 
     @wp.kernel(module="unique")
-    def block_alpha(g: wp.array4d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), k: int,
+    def block_alpha(g: wp.array4d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), k: int, dependent: wp.float64,
                     coef: wp.array4d(dtype=wp.float64), active: wp.array(dtype=wp.int32)):
         """One thread per world: ``alpha = G_PAP^-1 G_RZ``; clears the loop flag, which
         :func:`block_scalars` sets again while a world still has to run."""
@@ -310,12 +317,12 @@ def small_kernels(columns: int):
             active[0] = 0
         if not running(wdone, w):
             return
-        store(solve_small(load(g, w, G_PAP, k), load(g, w, G_RZ, k), k), coef, w, ALPHA, k)
+        store(solve_small(load(g, w, G_PAP, k), load(g, w, G_RZ, k), k, dependent), coef, w, ALPHA, k)
 
     @wp.kernel(module="unique")
     def block_scalars(scal: wp.array3d(dtype=wp.float64), g: wp.array4d(dtype=wp.float64), tolerance: wp.float64,
                       max_iterations: int, advance: int, hold: wp.array(dtype=wp.float64), k: int,
-                      wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64),
+                      dependent: wp.float64, wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64),
                       info: wp.array(dtype=wp.int32), active: wp.array(dtype=wp.int32)):
         """One thread per world, after an iteration (``advance = 1``: ``beta = G_RZ^-1 G_RZ_new``, roll
         the accumulators over, count it) or after the start (``advance = 0``). A world whose live
@@ -341,7 +348,7 @@ def small_kernels(columns: int):
             return
         finite = wp.int32(1)
         if advance != 0:
-            beta = solve_small(load(g, w, G_RZ, k), load(g, w, G_RZ_NEW, k), k)
+            beta = solve_small(load(g, w, G_RZ, k), load(g, w, G_RZ_NEW, k), k, dependent)
             store(beta, coef, w, BETA, k)
             for a in range(k):
                 for b in range(k):

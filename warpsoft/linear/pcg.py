@@ -94,6 +94,10 @@ class PCG:
             self.coef = wp.zeros((worlds, 2, k, k), dtype=wp.float64, device=m.device)
             self.wdone = wp.zeros(worlds, dtype=wp.int32, device=m.device)
             self.world_start = wp.array(m.world_node_start, dtype=wp.int32, device=m.device)  # (worlds + 1,)
+            # the scaled pivot below which a block direction is dropped, by the precision of Z = P^-1 R
+            # (:data:`~warpsoft.kernels.linear.block_pcg.DEPENDENT`)
+            single = getattr(preconditioner, "dtype", wp.float64) == wp.float32
+            self.dependent = blockk.DEPENDENT["float32" if single else "float64"]
 
     def bound(self, count: wp.array, offset: int = 0) -> None:
         """Solve only the right-hand sides ``c < offset + count[0]`` (``count`` an int32 device array
@@ -232,7 +236,7 @@ class PCG:
         k, n = x.shape
         self.op.apply(self.p, self.ap, self.scal)  # the worlds done are skipped, here and below
         self._gram(self.p, self.ap, blockk.G_PAP)
-        launch(blockk.small_kernels(k)[0], m.num_worlds, inputs=[self.gram, self.wdone, k],
+        launch(blockk.small_kernels(k)[0], m.num_worlds, inputs=[self.gram, self.wdone, k, self.dependent],
                outputs=[self.coef, self.active], device=d)
         blockk.launch_worlds(blockk.block_update_kernel(k), m.num_worlds, [x, self.r, self.p, self.ap, m.mask,
                                                                           self.world_start, self.scal, self.wdone,
@@ -250,7 +254,8 @@ class PCG:
 
     def _block_scalars(self, advance: int) -> None:
         launch(blockk.small_kernels(self.r.shape[0])[1], self.op.model.num_worlds,
-               inputs=[self.scal, self.gram, self.tolerance, self.max_iterations, advance, self.held, self.r.shape[0]],
+               inputs=[self.scal, self.gram, self.tolerance, self.max_iterations, advance, self.held, self.r.shape[0],
+                       self.dependent],
                outputs=[self.wdone, self.coef, self.info, self.active],
                device=self.op.model.device)
 
