@@ -38,14 +38,7 @@ def replayed(call, device: str, repeats: int, rounds: int) -> float:
         with wp.ScopedCapture(device=device) as capture:
             calls()
         run = lambda: wp.capture_launch(capture.graph)  # noqa: E731
-    times = []
-    for _ in range(rounds):
-        wp.synchronize_device(device)
-        t0 = time.perf_counter()
-        run()
-        wp.synchronize_device(device)
-        times.append((time.perf_counter() - t0) / repeats)
-    return 1e3 * float(np.median(times))
+    return 1e3 * batch_bench._median_call(run, device, rounds) / repeats
 
 
 def main(argv=None) -> int:
