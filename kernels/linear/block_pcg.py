@@ -36,7 +36,7 @@ BETA = wp.constant(1)  # coef[w, BETA]
 # those before it, and float32 products carry ~1e-7 of rounding. On 16 bars whose four cables
 # run 2 mm apart (nearly equal columns), float32 blocks or factors diverged from step 1 with
 # 1e-12 (its columns' rounding taken for directions: beta up to 1e16) and met NaN at step 2
-# with 1e-6; with 1e-4 they take 2-9 iterations a step, as float64 does with 1e-12
+# with 1e-6; with 1e-4 they take 2-9 iterations a step (float64 with 1e-12: 1-12)
 # (tests/test_block_pcg.py)
 DEPENDENT = {"float64": 1e-12, "float32": 1e-4}
 
