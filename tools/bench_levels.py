@@ -73,16 +73,16 @@ def main(argv=None) -> int:
     results = []
     for unroll in args.unroll:
         pre.unroll = unroll
-        pre._done = masks[0]
+        pre.watch(masks[0])
         full = replayed(lambda: pre.apply(r, z), device, 10, 5)
         sequence = []
         for mask in masks:
-            pre._done = mask
+            pre.watch(mask)
             sequence.append(replayed(lambda: pre.apply(r, z), device, 5, 3))
         results.append({"unroll": unroll, "full_ms": full, "solve_ms": sum(sequence), "sequence_ms": sequence})
         print(f"unroll {unroll}: P^-1 {full:.3f} ms with every world; a solve's {len(sequence)} {sum(sequence):.2f} ms "
               f"[{' '.join(f'{t:.2f}' for t in sequence)}]", flush=True)
-    pre._done = solver.scal
+    pre.watch(solver.scal)
     if args.out:
         Path(args.out).write_text(json.dumps({"designs": args.designs, "iterations": its.tolist(),
                                               "results": results}, indent=1))
