@@ -82,17 +82,17 @@ def test_sliced_programs_solve_as_the_programs_do(width):
             assert np.sum(s.level == level) % width == 0
 
 
-@pytest.mark.parametrize("layout", ["rows", "slices", "tiled"])
+@pytest.mark.parametrize("layout", ["rows", "slices", "lanes"])
 def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout):
     """At rest the 1 and 3 MPa beams share a factor, the second's inverse scaled by 1/3; the
     product equals the host factor's. A world whose columns all converged is not touched. So
     with each row's entries one after another, as the CPU lays them out; in slices of 4 rows,
-    as CUDA does (a warp of 32 there); and with every level through the tiled kernel that CUDA
-    gives long rows (one lane a row here)."""
+    as CUDA does (a warp of 32 there); and with every level through the kernel that CUDA gives
+    long rows, whose lanes add by warp shuffles (one lane a row here)."""
     sim = ws.Simulator(ws.finalize([beam(), beam(3e6), beam(cells=16)]), solver="direct")
     sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
     pre = WorldFactors(sim.operator, 2, "float64")
-    if layout == "tiled":
+    if layout == "lanes":
         pre.lanes, pre.lanes_from = 1, 0.0
     pre.width = 4 if layout == "slices" else 1
     scal = wp.zeros((2, 3, NUM_SCALARS), dtype=wp.float64)
@@ -122,6 +122,16 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout):
         pre.unroll = unroll
         pre.apply(r, z)
         assert np.array_equal(z.numpy(), fresh.numpy())
+    # operand rows indexed number by number, as CUDA reads them (the CPU reads them from their
+    # address): the same numbers
+    pre.whole_rows = False
+    for unroll in (1, 3):
+        pre.unroll = unroll
+        pre.apply(r, z)
+        assert np.array_equal(z.numpy(), fresh.numpy())
+    pre.lanes = 2  # (lanes add by warp shuffles: CUDA's)
+    with pytest.raises(ValueError, match="2 lanes a row add by warp shuffles"):
+        pre.apply(r, z)
 
 
 def test_each_world_steps_as_alone_and_as_with_dense_blocks():

@@ -95,21 +95,47 @@ def rotate_out(dtype, columns: int):
 UNROLL = 4  # entries a thread loads before it sums them (docs/performance.md)
 
 
-def _row_funcs(columns: int, dtype, unroll: int = UNROLL):
+def _row_load(width: int, dtype):
+    """``load_row(src, j)``: row ``j`` of a ``(rows, width)`` operand as a ``(width,)`` vector, read
+    from the row's address, found once, rather than indexed number by number: on the CPU the
+    levels' ``P^-1`` of 4 Diamonds took 6.0 -> 4.8 ms. On CUDA the indexed loads are the faster
+    (1024 Diamonds: 5.0 against 5.9 ms; rows padded to 16-byte loads, 5.2): docs/performance.md."""
+    key = ("load", width, dtype)
+    if key in _kernels:
+        return _kernels[key]
+    ctype = "float" if dtype == wp.float32 else "double"
+    snippet = "\n".join([
+        f"wp::vec_t<{width}, {ctype}> v;",
+        f"const {ctype}* at = reinterpret_cast<const {ctype}*>(reinterpret_cast<const char*>(src.data)"
+        " + size_t(j) * size_t(src.strides[0]));",
+        f"for (int i = 0; i < {width}; ++i) v.c[i] = at[i];",
+        "return v;"])
+    row = wp.types.vector(length=width, dtype=dtype)
+
+    @wp.func_native(snippet)
+    def load_row(src: wp.array2d(dtype=dtype), j: int) -> row: ...
+
+    _kernels[key] = load_row
+    return load_row
+
+
+def _row_funcs(columns: int, dtype, unroll: int = UNROLL, whole: bool = False):
     """The two functions a level's kernels share for ``k = columns`` and ``dtype``: ``running(scal,
     w)``, whether some column of world ``w`` has not converged, and ``entries(acc, e0, e1, step,
     base, col, val, src)``, ``acc`` plus the sums ``sum_e val[e] src[base + col[e], c]`` over
     ``e0 <= e < e1`` by ``step``, ``(k,)``. The entries are taken ``unroll`` at a time: their
     loads are issued together, then summed in order (the rounding of one loop), so that a thread
     waits for memory once per ``unroll`` entries rather than twice per entry (the column, then
-    the operand it points to)."""
-    key = ("funcs", columns, dtype, unroll)
+    the operand it points to). ``whole``: an operand row is read whole (:func:`_row_load`), else
+    indexed number by number."""
+    key = ("funcs", columns, dtype, unroll, whole)
     if key in _kernels:
         return _kernels[key]
     K, U = columns, unroll
     sums = wp.types.vector(length=K, dtype=dtype)
     loads = wp.types.vector(length=U, dtype=dtype)
     places = wp.types.vector(length=U, dtype=wp.int32)
+    load_row = _row_load(K, dtype)
 
     @wp.func
     def running(scal: wp.array3d(dtype=wp.float64), w: int) -> bool:
@@ -130,14 +156,24 @@ def _row_funcs(columns: int, dtype, unroll: int = UNROLL):
                 v[u] = val[e + u * step]
                 j[u] = base + col[e + u * step]
             for u in range(U):
-                for c in range(K):
-                    total[c] = total[c] + v[u] * src[j[u], c]
+                if wp.static(whole):
+                    o = load_row(src, j[u])
+                    for c in range(K):
+                        total[c] = total[c] + v[u] * o[c]
+                else:
+                    for c in range(K):
+                        total[c] = total[c] + v[u] * src[j[u], c]
             e = e + U * step
         while e < e1:
             v1 = val[e]
             j1 = base + col[e]
-            for c in range(K):
-                total[c] = total[c] + v1 * src[j1, c]
+            if wp.static(whole):
+                o1 = load_row(src, j1)
+                for c in range(K):
+                    total[c] = total[c] + v1 * o1[c]
+            else:
+                for c in range(K):
+                    total[c] = total[c] + v1 * src[j1, c]
             e = e + step
         return total
 
@@ -145,18 +181,19 @@ def _row_funcs(columns: int, dtype, unroll: int = UNROLL):
     return running, entries
 
 
-def level_kernel(columns: int, dtype, step: int = 1, unroll: int = UNROLL):
+def level_kernel(columns: int, dtype, step: int = 1, unroll: int = UNROLL, whole: bool = False):
     """``factor_level(tasks, first, col, val, node_world, world_row, scal, inp, out)`` for ``k =
     columns`` right-hand sides in precision ``dtype``, a task's entries ``step`` apart, a thread
-    per task, over a level's tasks, which start at ``tasks[first]``, ``unroll`` entries at a time.
-    The four are compile-time constants, hence cached per key (a step read from the task, the task
-    then five numbers, took the solve from 7.2 to 15.3 ms on the H200)."""
-    key = ("level", columns, dtype, step, unroll)
+    per task, over a level's tasks, which start at ``tasks[first]``, ``unroll`` entries at a time,
+    operand rows read ``whole`` or not (:func:`_row_funcs`). The five are compile-time constants,
+    hence cached per key (a step read from the task, the task then five numbers, took the solve
+    from 7.2 to 15.3 ms on the H200)."""
+    key = ("level", columns, dtype, step, unroll, whole)
     if key in _kernels:
         return _kernels[key]
     K, STEP = columns, step
     sums = wp.types.vector(length=K, dtype=dtype)
-    running, entries = _row_funcs(columns, dtype, unroll)
+    running, entries = _row_funcs(columns, dtype, unroll, whole)
 
     @wp.kernel(module="unique")
     def factor_level(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=wp.int32),
@@ -181,37 +218,68 @@ def level_kernel(columns: int, dtype, step: int = 1, unroll: int = UNROLL):
     return factor_level
 
 
-def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL):
-    """:func:`level_kernel` with ``lanes`` threads per task (a tiled launch, ``block_dim = lanes``,
-    CUDA): they stride the task's entries, so that a long row keeps ``lanes`` loads in flight
-    and neighbouring threads read neighbouring entries, and a tile sum adds their shares."""
-    key = ("lanes", columns, dtype, lanes, unroll)
+def _lane_sum(columns: int, dtype, lanes: int):
+    """``lane_sum(v)``: on CUDA the sum of ``v`` (``(k,)``) over the ``lanes`` neighbouring threads
+    of a warp that share a task (``lanes`` a power of 2 up to 32, the task's threads aligned on
+    it), in each of them, by shuffles (no shared memory, no barrier: several tasks a block);
+    elsewhere, where a task has one thread, ``v``."""
+    key = ("lane_sum", columns, dtype, lanes)
     if key in _kernels:
         return _kernels[key]
-    K = columns
-    L = lanes
+    if lanes & (lanes - 1) or not 1 <= lanes <= 32:
+        raise ValueError(f"level lanes must be a power of 2 up to 32, got {lanes}")
+    ctype = "float" if dtype == wp.float32 else "double"
+    snippet = "\n".join([
+        f"wp::vec_t<{columns}, {ctype}> s = v;",
+        "#if defined(__CUDA_ARCH__)",
+        f"for (int o = {lanes // 2}; o > 0; o >>= 1)",
+        f"    for (int c = 0; c < {columns}; ++c) s.c[c] += __shfl_xor_sync(0xffffffffu, s.c[c], o, {lanes});",
+        "#endif",
+        "return s;"])
+    sums = wp.types.vector(length=columns, dtype=dtype)
+
+    @wp.func_native(snippet)
+    def lane_sum(v: sums) -> sums: ...
+
+    _kernels[key] = lane_sum
+    return lane_sum
+
+
+def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL, whole: bool = False):
+    """:func:`level_kernel` with ``lanes`` neighbouring threads per task (``lanes`` dividing 32; a
+    launch of ``tasks x lanes`` threads): they stride the task's entries, so that a long row
+    keeps ``lanes`` loads in flight and neighbouring threads read neighbouring entries, and warp
+    shuffles add their shares (:func:`_lane_sum`). A block holds ``block_dim / lanes`` tasks: with a
+    tile a task (a block of 32 threads, a tile sum) the SM held half its warps at most (32
+    blocks), and a level of long rows launched a block a row however few worlds still ran
+    (1024 Diamonds: ``P^-1`` 5.54 -> 5.01 ms, docs/performance.md)."""
+    key = ("lanes", columns, dtype, lanes, unroll, whole)
+    if key in _kernels:
+        return _kernels[key]
+    K, L = columns, lanes
     sums = wp.types.vector(length=K, dtype=dtype)
-    running, entries = _row_funcs(columns, dtype, unroll)
+    running, entries = _row_funcs(columns, dtype, unroll, whole)
+    lane_sum = _lane_sum(columns, dtype, lanes)
 
     @wp.kernel(module="unique")
     def factor_level_lanes(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=wp.int32),
                            val: wp.array(dtype=dtype), node_world: wp.array(dtype=wp.int32),
                            world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
                            inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype)):
-        i, lane = wp.tid()
-        t = tasks[first + i]
+        tid = wp.tid()
+        lane = tid % L
+        t = tasks[first + tid // L]
         row = t[0]
         w = node_world[row // 3]
         if not running(scal, w):
-            return  # every column of the world converged (the whole block returns)
+            return  # every column of the world converged (the task's lanes all return)
         base = world_row[w]
         acc = entries(sums(), t[1] + lane, t[2], L, base, col, val, inp)  # (contiguous entries: step 1)
         acc = entries(acc, t[2] + lane, t[3], L, base, col, val, out)
-        total = wp.tile_sum(wp.tile(acc, preserve_type=True))
+        total = lane_sum(acc)
         if lane == 0:
-            s = total[0]
             for c in range(K):
-                out[row, c] = s[c]
+                out[row, c] = total[c]
 
     _kernels[key] = factor_level_lanes
     return factor_level_lanes

@@ -75,8 +75,10 @@ class WorldFactors(WorldGroups):
     and backward solves' launches), ``entries`` (the programs' numbers, all blocks), ``refreshes``,
     ``memory_bytes``, ``lanes`` and ``lanes_from`` (the threads a row of the levels whose rows
     average that many entries; H200, 1024 different Diamonds: P^-1 26.6 -> 9.8 ms with 32 from 128),
-    ``width`` (the slices' rows in the other levels), ``workers`` (the processes that factorize
-    the blocks, :data:`WORKERS`; the GPU machine's 16 for 256 different Diamonds: 49.2 -> 15.2 s).
+    ``width`` (the slices' rows in the other levels), ``unroll`` (the entries a level's thread
+    loads at a time), ``whole_rows`` (the levels read an operand row from its address: the CPU's
+    faster way; CUDA indexes its numbers), ``workers`` (the processes that factorize the blocks,
+    :data:`WORKERS`; the GPU machine's 16 for 256 different Diamonds: 49.2 -> 15.2 s).
     """
 
     capturable = True
@@ -96,6 +98,9 @@ class WorldFactors(WorldGroups):
         # the solves' operands, flat (3 nodes, k), each world's rows in its factor's order
         # (``place``): input, forward, backward
         self.u, self.y, self.x = (wp.zeros((rows, self.columns), dtype=self.dtype, device=d) for _ in range(3))
+        # the levels read an operand row from its address on the CPU, indexed on CUDA (the faster
+        # on each: ``_row_load`` in kernels/linear/factors.py)
+        self.whole_rows = not d.is_cuda
         self.world_row = wp.array((3 * m.world_node_start[:-1]).astype(np.int32), dtype=wp.int32, device=d)
         self.patterns = {}  # mesh -> the lower triangle of its system over its free DOFs
         for key, (local, nodes) in self.meshes.items():
@@ -107,8 +112,8 @@ class WorldFactors(WorldGroups):
         self.workers = WORKERS
         self.solves = None  # per direction: (tasks, col, val, [(first, count, long rows) per level])
         # levels whose rows average at least lanes_from entries take `lanes` threads a row
-        # (level_kernel_lanes, a tiled launch); the others a thread a row. None: never (the CPU,
-        # where a tiled launch runs one thread a block)
+        # (level_kernel_lanes: they add by warp shuffles); the others a thread a row. None: never
+        # (the CPU, where a row has one thread)
         self.lanes, self.lanes_from = (LANES, LANES_FROM) if d.is_cuda else (1, None)
         # the other levels' rows, a thread each, in slices of `width` (1: each row's entries one
         # after another, as the CPU's one thread reads them)
@@ -256,13 +261,17 @@ class WorldFactors(WorldGroups):
         launch(kernels.rotate_in_scaled(self.dtype, k), m.num_nodes,
                inputs=[r, self.q_rot, m.mask, m.node_world, self.place, self.inv_scale, self._done], outputs=[self.u],
                device=d)
-        level = kernels.level_kernel(k, self.dtype, self.width, self.unroll)
-        lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes, self.unroll)
+        if self.lanes > 1 and not d.is_cuda:
+            raise ValueError(f"WorldFactors: {self.lanes} lanes a row add by warp shuffles, which only CUDA has; "
+                             "give the CPU one lane a row")
+        level = kernels.level_kernel(k, self.dtype, self.width, self.unroll, self.whole_rows)
+        lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes,
+                                                                                self.unroll, self.whole_rows)
         for (tasks, col, val, levels), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x), strict=True):
             for first, count, long in levels:
                 inputs = [tasks, first, col, val, m.node_world, self.world_row, self._done, inp]
-                if long:  # long rows: a block of threads each
-                    wp.launch_tiled(lanes, dim=[count], inputs=inputs, outputs=[out], block_dim=self.lanes, device=d)
+                if long:  # long rows: `lanes` threads each
+                    launch(lanes, count * self.lanes, inputs=inputs, outputs=[out], device=d)
                 else:
                     launch(level, count, inputs=inputs, outputs=[out], device=d)
         launch(kernels.rotate_out(self.dtype, k), m.num_nodes,
