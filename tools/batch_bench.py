@@ -60,7 +60,9 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
     """Median step time (s) of ``scenes`` as one model, its DOFs, and what the solve did: the CG
     iterations of a step and the mean of its worlds' (medians over the timed steps), and the
     preconditioner's distinct blocks and device memory when it keeps them per world; with
-    ``kernels`` (CUDA), one more step uncaptured, each kernel and copy timed (``info["kernels"]``)."""
+    ``kernels`` (CUDA), one more step uncaptured, each kernel and copy timed (``info["kernels"]``);
+    and each timed step's time, its graphs' and its CG iterations (the host's share is the first
+    less the second)."""
     t0 = time.perf_counter()
     sim = ws.Simulator(ws.finalize(scenes, device), device=device, **options)
     for _ in range(warmup):
@@ -88,7 +90,9 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
             parts["assemble_ms"] = 1e3 * _median_call(lambda: sim.operator.linearized(), sim.model.device)
     if sim.timing and sim.model.device.is_cuda:  # the graphs' own time (synchronized), the rest is the host's
         parts["graph_ms"] = 1e3 * float(np.median(graphs))
-    info = {**parts, "cg_iterations": float(np.median(its)), "world_cg_iterations": float(np.median(world_its)),
+    info = {**parts, "step_times_ms": [1e3 * t for t in times], "graph_times_ms": [1e3 * t for t in graphs],
+            "step_cg_iterations": its,
+            "cg_iterations": float(np.median(its)), "world_cg_iterations": float(np.median(world_its)),
             "setup_s": setup, "preconditioner": type(pre).__name__,
             "blocks": getattr(pre, "blocks", None), "precond_mb": getattr(pre, "memory_bytes", 0) / 1e6}
     return float(np.median(times)), sim.model.num_dofs, info
