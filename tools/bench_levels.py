@@ -1,10 +1,10 @@
 """Cost of the sparse factors' ``P^-1`` in a batch of different Diamonds (CUDA): at full load, and
 over one solve's sequence of running worlds (those of the last warm-up step: at CG iteration
-``i`` the worlds that took more than ``i``), each replayed from a graph, for each ``--loads`` and
-``--unroll`` (and the product's largest difference from the first's: they sum in one order).
+``i`` the worlds that took more than ``i``), each replayed from a graph, for each ``--loads``,
+``--lanes`` and ``--unroll`` (and the product's largest difference from the first's).
 
-    python tools/bench_levels.py --designs 1024 [--loads indexed whole] [--unroll 1 4] [--device cuda]
-        [--out out/levels.json]
+    python tools/bench_levels.py --designs 1024 [--loads indexed whole] [--lanes 16 32] [--unroll 1 4]
+        [--device cuda] [--out out/levels.json]
 
 The designs are ``batch_bench.py``'s with as many meshes as designs (set WARPSOFT_MESH_CACHE to
 the meshes made ahead of time: meshing 1024 Diamonds takes minutes).
@@ -49,6 +49,8 @@ def main(argv=None) -> int:
     ap.add_argument("--unroll", type=int, nargs="*", default=[1, 4], help="entries a level's thread loads at a time")
     ap.add_argument("--loads", nargs="*", default=["indexed"], choices=["indexed", "whole"],
                     help="operand rows indexed number by number (CUDA's) or read from their address (the CPU's)")
+    ap.add_argument("--lanes", type=int, nargs="*", default=None,
+                    help="threads a long row (a power of 2 up to 32; default: the preconditioner's)")
     ap.add_argument("--warmup", type=int, default=4, help="steps before (their last gives the running worlds)")
     ap.add_argument("--device", default="cuda", help="cuda (what it is for) or cpu (a check that it runs)")
     ap.add_argument("--out", default=None, help="a JSON file for the results")
@@ -75,9 +77,10 @@ def main(argv=None) -> int:
         s[:, its <= i, DONE] = 1.0
         masks.append(wp.array(s, dtype=wp.float64, device=device))
     results, first = [], None
-    kept = pre.whole_rows
-    for loads, unroll in [(loads, unroll) for loads in args.loads for unroll in args.unroll]:
-        pre.whole_rows = loads == "whole"
+    kept = pre.whole_rows, pre.lanes
+    for loads, lanes, unroll in [(lo, la, u) for lo in args.loads for la in args.lanes or [pre.lanes]
+                                 for u in args.unroll]:
+        pre.whole_rows, pre.lanes = loads == "whole", lanes
         pre.unroll = unroll
         pre.watch(masks[0])
         pre.apply(r, z)
@@ -89,12 +92,12 @@ def main(argv=None) -> int:
         for mask in masks:
             pre.watch(mask)
             sequence.append(replayed(lambda: pre.apply(r, z), device, 5, 3))
-        results.append({"loads": loads, "unroll": unroll, "full_ms": full,
+        results.append({"loads": loads, "lanes": lanes, "unroll": unroll, "full_ms": full,
                         "solve_ms": sum(sequence), "sequence_ms": sequence, "max_difference": differs})
-        print(f"{loads}, unroll {unroll}: P^-1 {full:.3f} ms with every world; a "
+        print(f"{loads}, {lanes} lanes, unroll {unroll}: P^-1 {full:.3f} ms with every world; a "
               f"solve's {len(sequence)} {sum(sequence):.2f} ms [{' '.join(f'{t:.2f}' for t in sequence)}]; "
               f"differs by {differs:.3g}", flush=True)
-    pre.whole_rows = kept
+    pre.whole_rows, pre.lanes = kept
     pre.watch(solver.scal)
     if args.out:
         Path(args.out).write_text(json.dumps({"designs": args.designs, "iterations": its.tolist(),
