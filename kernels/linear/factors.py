@@ -145,6 +145,19 @@ def _row_funcs(columns: int, dtype, unroll: int = UNROLL, whole: bool = False):
         return False
 
     @wp.func
+    def add_row(total: sums, v: dtype, src: wp.array2d(dtype=dtype), j: int) -> sums:
+        """``total + v src[j, :k]``, the row read whole or indexed."""
+        out = total
+        if wp.static(whole):
+            o = load_row(src, j)
+            for c in range(K):
+                out[c] = out[c] + v * o[c]
+        else:
+            for c in range(K):
+                out[c] = out[c] + v * src[j, c]
+        return out
+
+    @wp.func
     def entries(acc: sums, e0: int, e1: int, step: int, base: int, col: wp.array(dtype=wp.int32),
                 val: wp.array(dtype=dtype), src: wp.array2d(dtype=dtype)) -> sums:
         total = acc + sums()
@@ -156,24 +169,10 @@ def _row_funcs(columns: int, dtype, unroll: int = UNROLL, whole: bool = False):
                 v[u] = val[e + u * step]
                 j[u] = base + col[e + u * step]
             for u in range(U):
-                if wp.static(whole):
-                    o = load_row(src, j[u])
-                    for c in range(K):
-                        total[c] = total[c] + v[u] * o[c]
-                else:
-                    for c in range(K):
-                        total[c] = total[c] + v[u] * src[j[u], c]
+                total = add_row(total, v[u], src, j[u])
             e = e + U * step
         while e < e1:
-            v1 = val[e]
-            j1 = base + col[e]
-            if wp.static(whole):
-                o1 = load_row(src, j1)
-                for c in range(K):
-                    total[c] = total[c] + v1 * o1[c]
-            else:
-                for c in range(K):
-                    total[c] = total[c] + v1 * src[j1, c]
+            total = add_row(total, val[e], src, base + col[e])
             e = e + step
         return total
 
