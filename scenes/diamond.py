@@ -72,10 +72,10 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
     for i, (c, d, pull) in enumerate(zip(corners, cable_displacements, pulls, strict=True)):
         if forces[i] is not None:  # driven by its tension
             scene.add_cable(f"cable{i}", body, points=[tuple(c)], pull_point=tuple(pull), mode="force",
-                            value=lambda t, f=float(forces[i]): f * min(t / ramp_time, 1.0))
+                            value=ws.Ramp(float(forces[i]), ramp_time))
             continue
         if cable_schedule is None:
-            value = lambda t, d=d: d * min(t / ramp_time, 1.0)  # noqa: E731
+            value = ws.Ramp(d, ramp_time)
         else:
             value = lambda t, i=i: cable_schedule(t)[i]  # noqa: E731
         scene.add_cable(f"cable{i}", body, points=[tuple(c)], pull_point=tuple(pull), mode="displacement",

@@ -37,7 +37,7 @@ def build(length=0.085, height=0.02, width=0.015, notches=3, notch_depth=0.006, 
     z = cable_height
     path = [(-length * k / 10, width / 2, z) for k in range(1, 10)] + [(-length + 0.003, width / 2, z)]
     scene.add_cable("cable", finger, points=path, pull_point=(0.01, width / 2, z), mode="displacement",
-                    value=lambda t: cable_displacement * min(t / ramp_time, 1.0),
+                    value=ws.Ramp(cable_displacement, ramp_time),
                     max_displacement=max_cable_displacement)
     scene.add_effector("fingertip", (-length, width / 2, height / 2))
     scene.add_probe("tip", (-length, width / 2, height / 2))

@@ -28,7 +28,7 @@ def build(length=0.1, base_radius=0.008, tip_radius=0.003, young_modulus=100e3, 
     radius = base_radius + (tip_radius - base_radius) * xs / length
     path = [(x, 0.0, -0.6 * r) for x, r in zip(xs, radius, strict=True)]
     scene.add_cable("cable", arm, points=path, pull_point=(-0.01, 0.0, -0.6 * base_radius),
-                    value=lambda t: cable_displacement * min(t / ramp_time, 1.0), max_force=max_force)
+                    value=ws.Ramp(cable_displacement, ramp_time), max_force=max_force)
     under = base_radius + (tip_radius - base_radius) * cylinder_x / length
     axis_z = -(under + cylinder_gap + cylinder_radius)
     scene.add_obstacle("cylinder", ws.obstacles.Cylinder((cylinder_x, -0.03, axis_z), (cylinder_x, 0.03, axis_z),

@@ -47,7 +47,7 @@ def build(length=0.115, width=0.02, height=0.02, chambers=6, gap=0.002, wall=0.0
         scene.set_contacts(256)  # the gaps' facing walls: about a hundred nodes come near at 60 kPa
     scene.fix(bar, ws.InBox((-1.0, -1.0, -1.0), (0.2 * base, 1.0, 1.0)))
     scene.add_cavity("chambers", bar, region=cavity, mode="pressure",
-                     value=lambda t: pressure * min(t / ramp_time, 1.0))
+                     value=ws.Ramp(pressure, ramp_time))
     scene.add_effector("tip", (length, width / 2, floor / 2))
     scene.add_probe("tip", (length, width / 2, floor / 2))
     return scene

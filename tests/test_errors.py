@@ -215,3 +215,36 @@ def test_the_first_region_names_still_work_and_say_their_new_names():
             region = old(ws)
         assert isinstance(region, type(new)) and np.array_equal(region(points), new(points))
         assert 0 < new(points).sum() < len(points)
+
+
+def test_ramp_inputs_are_evaluated_at_once_as_each_would_be_alone():
+    """A Ramp goes linearly from its initial input to its value over its duration and holds
+    before and after; the step evaluates a batch's ramps in one array expression, to the bit
+    what each gives called alone, beside numbers and other schedules. Bad numbers are named."""
+    ramps = [ws.Ramp(0.004, 0.05), ws.Ramp(2.0, 0.0, start=0.1, initial=1.0), ws.Ramp(-3e-3, 1.5, 0.2, 5e-4)]
+    assert ramps[0](0.0) == 0.0 and ramps[0](0.025) == pytest.approx(0.002) and ramps[0](1.0) == 0.004
+    assert ramps[1](0.0999) == 1.0 and ramps[1](0.1) == 2.0  # duration 0: a step at its start
+    assert ramps[2](0.0) == 5e-4 and ramps[2](0.95) == pytest.approx(0.5 * (5e-4 - 3e-3)) and ramps[2](9.0) == -3e-3
+    table = np.array([r.row() for r in ramps])
+    for t in (-1.0, 0.0, 0.01, 0.05, 0.1, 0.2, 0.73, 1.7, 3.0):
+        assert ws.Ramp.at(table, t).tolist() == [r(t) for r in ramps]  # (== on floats: to the bit)
+    for kw, match in [({"value": 1.0, "duration": -0.1}, r"Ramp: duration must be >= 0 s, got -0.1"),
+                      ({"value": math.nan, "duration": 1.0}, r"Ramp: value must not be NaN"),
+                      ({"value": 1.0, "duration": 1.0, "start": math.inf}, r"Ramp: start must be finite"),
+                      ({"value": "far", "duration": 1.0}, r"Ramp: value must be a number, got 'far'")]:
+        with pytest.raises(ws.SceneError, match=match):
+            ws.Ramp(**kw)
+
+    scene = ws.Scene("s", dt=0.01)
+    body = scene.add_body("beam", MESH, MAT)
+    scene.fix(body, CLAMP)
+    for k, value in enumerate([ws.Ramp(2e-4, 0.025), 1e-4, lambda t: 3e-3 * t, ws.Ramp(1e-4, 0.0, start=0.02)]):
+        z = 0.001 + 0.002 * k
+        scene.add_cable(f"c{k}", body, points=[(0.02, 0.005, z), (0.04, 0.005, z)], pull_point=(-0.01, 0.005, z),
+                        value=value)
+    sim = ws.Simulator(scene)
+    for _ in range(3):
+        stats = sim.step()
+        t = stats.time  # (the inputs are the step's end's)
+        assert sim.values.tolist() == [ws.Ramp(2e-4, 0.025)(t), 1e-4, 3e-3 * t, 1e-4 if t >= 0.02 else 0.0]
+        assert set(stats.actuator_delta) == {"c0", "c1", "c2", "c3"}

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import warpsoft as ws
+from warpsoft.stats import WorldRecord, Worlds, WorldStats
 
 
 def static_trio(scene_module):
@@ -122,3 +123,27 @@ def test_worlds_must_share_the_step(scene_module):
         sim.step([ws.Control({"nope": 1.0}), None, None])
     with pytest.raises(ws.SceneError, match=r"stats.worlds\[w\].actuator_delta"):
         _ = sim.step().actuator_delta
+
+
+def test_world_stats_are_read_from_the_step_record():
+    """A step records every world's numbers at once and each world's stats are made when read:
+    a world reads its own column, a dictionary read twice is the same one and keeps what is put
+    in it, what is set on a world stays its own, and an unknown field is an error."""
+    record = WorldRecord(3)
+    record.add("cg_iterations", np.array([4, 5, 6]))
+    record.add("cg_iterations", np.array([1, 0, 2]))  # (a second Newton iteration's solve adds)
+    record.makers["actuator_delta"] = lambda w: {"cable": 0.001 * w}
+    worlds = Worlds(record)
+    assert len(worlds) == 3 and [w.cg_iterations for w in worlds] == [5, 5, 8]
+    assert isinstance(worlds[2].cg_iterations, int) and worlds[-1] is worlds[2]
+    assert worlds[0:2] == [worlds[0], worlds[1]]
+    assert worlds[1].actuator_delta == {"cable": 0.001} and worlds[1].actuator_delta is worlds[1].actuator_delta
+    worlds[0].rigid_bodies["cube"] = "pose"
+    worlds[0].qp_status = "solved"
+    assert worlds[0].rigid_bodies == {"cube": "pose"} and worlds[1].rigid_bodies == {}
+    assert worlds[0].qp_status == "solved" and worlds[1].qp_status == ""
+    with pytest.raises(IndexError):
+        _ = worlds[3]
+    with pytest.raises(TypeError, match="no field named nope"):
+        WorldStats(nope=1)
+    assert "cg_iterations=8" in repr(worlds[2]) and WorldStats(contacts=2).contacts == 2

@@ -45,6 +45,7 @@ from .scene import (  # noqa: E402
     Material,
     OnPlane,
     Plane,
+    Ramp,
     Region,
     Scene,
     Sphere,
@@ -68,7 +69,7 @@ __version__ = "0.1.0"
 __all__ = [
     "Ball", "Box", "Cone", "Control", "ConvergenceWarning", "Cylinder", "HalfSpace", "InBox", "InHalfSpace", "InSphere",
     "Material", "MeshError", "Model", "OnPlane",
-    "Plane", "Region", "Scene", "SceneError", "SimulationError", "Simulator", "Sphere", "State", "StepStats",
+    "Plane", "Ramp", "Region", "Scene", "SceneError", "SimulationError", "Simulator", "Sphere", "State", "StepStats",
     "TetMesh", "UserCodeError", "WarpsoftError", "WorldStats", "box_grid", "finalize", "load_mesh", "mesh_shape",
     "mesh_surface", "obstacles", "regions", "rotation_about", "save_mesh", "shapes", "waypoints",
 ]

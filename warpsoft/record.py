@@ -1,11 +1,12 @@
 """Each world's rows after a step, as the report records them (``StepStats.worlds``), from the
 step's one read.
 
-What can be computed for all worlds at once is: the effectors' errors, each world's gap to the
-linear prediction, the actuators' misses and the warnings they raise; the loop over the worlds
-only fills their dictionaries, by names laid out once per model (:class:`Layout`). When every
-world ran its own NumPy calls, 256 Diamonds took 5.0-6.5 ms here (CPU VM), now 1.7-2.7 ms; on the
-H200 the host's share of a 1024-design step fell from 44-48 ms to 25-35 ms (docs/performance.md).
+Everything is computed for all worlds at once: the effectors' errors, each world's gap to the
+linear prediction, the actuators' misses and the warnings they raise (in a loop over the worlds
+that warn). A world's dictionaries, by the names laid out once per model (:class:`Layout`), are
+made only when read (:class:`~warpsoft.stats.WorldRecord`). When every world ran its own NumPy
+calls, 256 Diamonds took 5.0-6.5 ms here (CPU VM); a loop over the worlds that filled their
+dictionaries, 1.7-2.7 ms (1024 Diamonds: about 6 ms); none, the figures of docs/performance.md.
 """
 
 from __future__ import annotations
@@ -64,11 +65,11 @@ class Layout:
         self.world_of_row = np.searchsorted(rows.world_row_start, np.arange(rows.num_rows), side="right") - 1
         self.forces = rows.world_actuators + rows.world_bilateral + rows.world_contacts > 0
         self.gaps = np.zeros(worlds)  # each world's gap to its last linear prediction (keep_gaps)
-        # per world, as Python values (the loop of record_rows reads them 1024 times a step):
-        # what it records (direct: its Gauss-Seidel's outcome; inverse: its actuators' reach)
-        inverse = [bool(scenes[w].inverse) for w in range(worlds)]
-        self.world_flags = list(zip((rows.world_bilateral > 0).tolist(), (rows.world_contacts > 0).tolist(),
-                                    self.forces.tolist(), inverse, strict=True))
+        # what each world records: direct, its Gauss-Seidel's outcome; inverse, its actuators' reach
+        self.inverse = np.array([bool(scenes[w].inverse) for w in range(worlds)], dtype=bool)
+        self.solved = self.forces & ~self.inverse  # (the worlds whose Gauss-Seidel ran)
+        self.bilateral, self.contact = rows.world_bilateral > 0, rows.world_contacts > 0
+        self.reach = [w for w in range(worlds) if self.inverse[w] and self.actuators[w][1]]
 
 
 def layout(sim: Simulator) -> Layout:
@@ -80,46 +81,45 @@ def layout(sim: Simulator) -> Layout:
 
 def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
     """Each world's rows at the new state (evaluated on the device by the step), by name, and the
-    Gauss-Seidel statistics, from the step's read (``host``)."""
-    rows, lay = sim.rows, layout(sim)
+    Gauss-Seidel statistics, from the step's read (``host``): computed for all worlds at once, and
+    each world's dictionaries made only when read (:class:`~warpsoft.stats.WorldRecord`)."""
+    rows, lay, record = sim.rows, layout(sim), stats.worlds.record
     targets = rows.set_time(stats.time)  # the step's targets, already on the device
     delta, points = host["delta"], host["points"][: rows.num_points]
     lam = host["lam"] if rows.num_columns else np.zeros(rows.num_rows)
-    errors = []
+    errors = np.zeros(0)
     if len(lay.target_index):  # every targeted effector's distance to its target on its controlled axes (m)
         off = (points[lay.target_point] - targets[lay.target_index]) * lay.target_axes
-        errors = np.sqrt(np.einsum("ij,ij->i", off, off)).tolist()
+        errors = np.sqrt(np.einsum("ij,ij->i", off, off))
     gaps = unpredicted(sim, stats, host, lay)
-    missed = actuator_misses(sim, stats, delta, lay) if len(lay.direct_rows) else []
-    delta_l, lam_l = delta.tolist(), lam.tolist()
-    result = host["resolve"].tolist() if rows.num_columns else None
-    # (a world's empty dictionaries stay the ones WorldStats made; 256 Diamonds: 0.98 -> 0.75 ms, CPU VM)
-    for w, (ws, (start, names), (bilateral, contacts, forces, inverse)) in enumerate(
-            zip(stats.worlds, lay.actuators, lay.world_flags, strict=True)):
-        if names:
-            end = start + len(names)
-            ws.actuator_delta = dict(zip(names, delta_l[start:end], strict=True))
-            ws.actuator_lambda = dict(zip(names, lam_l[start:end], strict=True))
-        if lay.effectors[w]:
-            ws.effectors = {name: points[i] for name, i in lay.effectors[w]}
-        if lay.targeted[w]:
-            ws.targets = {name: targets[lay.target_index[j]] for name, j in lay.targeted[w]}
-            ws.effector_error = {name: errors[j] for name, j in lay.targeted[w]}
-        if lay.watched[w]:
-            ws.actuator_residual = {name: missed[j] for name, _, j in lay.watched[w]}
-        if bilateral:
-            ws.attachments = rows.kind("attachment").forces(lam, w)
-        if contacts:
-            watch.contacts(sim, stats, w, host)
-        if forces:
-            ws.linearization_error = gaps[w]
-        if names and inverse:
-            watch.out_of_reach(sim, stats, w, delta[start:start + len(names)], lam[start:start + len(names)])
-        if forces and not inverse:
-            ws.resolve_iterations, ws.resolve_residual = int(result[w][0]), result[w][1]
-            if not result[w][2]:
-                stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: Gauss-Seidel stopped after "
-                                      f"{ws.resolve_iterations} sweeps, last change {ws.resolve_residual:.3e}")
+    missed = actuator_misses(sim, stats, delta, lay) if len(lay.direct_rows) else np.zeros(0)
+
+    def by_name(values: np.ndarray):  # world w's actuator rows of ``values``, by the actuators' names
+        def make(w: int) -> dict[str, float]:
+            start, names = lay.actuators[w]
+            return dict(zip(names, values[start:start + len(names)].tolist(), strict=True))
+        return make
+
+    record.makers |= {
+        "actuator_delta": by_name(delta), "actuator_lambda": by_name(lam),
+        "effectors": lambda w: {name: points[i] for name, i in lay.effectors[w]},
+        "targets": lambda w: {name: targets[lay.target_index[j]] for name, j in lay.targeted[w]},
+        "effector_error": lambda w: {name: float(errors[j]) for name, j in lay.targeted[w]},
+        "actuator_residual": lambda w: {name: float(missed[j]) for name, _, j in lay.watched[w]},
+        "attachments": lambda w: rows.kind("attachment").forces(lam, w) if lay.bilateral[w] else {}}
+    record.columns["linearization_error"] = np.where(lay.forces, gaps, 0.0)
+    for w in np.flatnonzero(lay.contact):
+        watch.contacts(sim, stats, int(w), host)
+    for w in lay.reach:
+        start, names = lay.actuators[w]
+        watch.out_of_reach(sim, stats, w, delta[start:start + len(names)], lam[start:start + len(names)])
+    if rows.num_columns:  # the direct worlds' Gauss-Seidel: sweeps, last change, converged
+        result = host["resolve"]
+        record.columns["resolve_iterations"] = np.where(lay.solved, result[:, 0], 0).astype(np.int64)
+        record.columns["resolve_residual"] = np.where(lay.solved, result[:, 1], 0.0)
+        for w in np.flatnonzero(lay.solved & (result[:, 2] == 0)):
+            stats.warnings.append(f"step {stats.index}{sim.world_label(int(w))}: Gauss-Seidel stopped after "
+                                  f"{int(result[w, 0])} sweeps, last change {result[w, 1]:.3e}")
 
 
 def keep_gaps(sim: Simulator, host: dict[str, np.ndarray], moved: np.ndarray) -> None:
@@ -144,21 +144,19 @@ def keep_gaps(sim: Simulator, host: dict[str, np.ndarray], moved: np.ndarray) ->
     lay.gaps[moved] = gaps[moved]
 
 
-def unpredicted(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], lay: Layout) -> list[float]:
-    """Each world's gap to its last linear prediction (:func:`keep_gaps`), and the warning of
-    :func:`warpsoft.watch.unpredicted_message` for the worlds where it exceeds ``UNPREDICTED``
-    times the step's largest node motion."""
-    gaps, worlds = lay.gaps, sim.model.num_worlds
+def unpredicted(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], lay: Layout) -> np.ndarray:
+    """Each world's gap to its last linear prediction (:func:`keep_gaps`), ``(worlds,)``, and the
+    warning of :func:`warpsoft.watch.unpredicted_message` for the worlds where it exceeds
+    ``UNPREDICTED`` times the step's largest node motion."""
+    gaps = lay.gaps.copy()
     motion = np.sqrt(host["health_step"])
     far = lay.forces & (gaps > watch.UNPREDICTED * motion) & (gaps > 1e-9 * sim.size)
-    for w in range(worlds):
-        key = ("unpredicted", w)
-        if (far[w] or sim.episodes.get(key)) and watch.begins(sim, key, bool(far[w])):
-            stats.warnings.append(watch.unpredicted_message(sim, stats, w, float(gaps[w]), float(motion[w])))
-    return gaps.tolist()
+    for w in watch.beginning(sim, "unpredicted", far):
+        stats.warnings.append(watch.unpredicted_message(sim, stats, int(w), float(gaps[w]), float(motion[w])))
+    return gaps
 
 
-def actuator_misses(sim: Simulator, stats: StepStats, delta: np.ndarray, lay: Layout) -> list[float]:
+def actuator_misses(sim: Simulator, stats: StepStats, delta: np.ndarray, lay: Layout) -> np.ndarray:
     """Direct model: how far each displacement-driven actuator (the watched rows of ``lay``) is
     from what it was asked for this step, in its units (cable m, cavity m^3); a warning, once per
     episode, for a world where one misses by more than ``MISSED_COMMAND`` of its command and
@@ -168,13 +166,10 @@ def actuator_misses(sim: Simulator, stats: StepStats, delta: np.ndarray, lay: La
     misses = np.abs(delta[r] - aims[r])
     missing = misses > watch.MISSED_COMMAND * np.abs(aims[r]) + lay.floors
     sim.row_delta_prev[lay.direct_rows] = delta[lay.direct_rows]
-    misses_l = misses.tolist()
     worlds = np.zeros(sim.model.num_worlds, dtype=bool)
     worlds[lay.world_of_row[r[missing]]] = True
-    for w in range(sim.model.num_worlds):
-        key = ("missed", w)
-        if (worlds[w] or sim.episodes.get(key)) and watch.begins(sim, key, bool(worlds[w])):
-            which = [f"{name} ({float(delta[row]):.4g} for {float(aims[row]):.4g})"
-                     for name, row, j in lay.watched[w] if missing[j]]
-            stats.warnings.append(watch.missed_message(sim, stats, w, which))
-    return misses_l
+    for w in watch.beginning(sim, "missed", worlds):
+        which = [f"{name} ({float(delta[row]):.4g} for {float(aims[row]):.4g})"
+                 for name, row, j in lay.watched[w] if missing[j]]
+        stats.warnings.append(watch.missed_message(sim, stats, int(w), which))
+    return misses

@@ -241,7 +241,7 @@ class Simulator:
         self.host_gauss_seidel = d.is_cuda and self.rows is not None and any(
             not s.inverse and self.rows.world_contacts[w] for w, s in enumerate(m.scenes))
         self.last_effector_error: dict[int, float] = {}  # per inverse world, m (is its target getting closer?)
-        self.episodes: dict[tuple, bool] = {}  # (what, world) -> whether a warning about it is in force
+        self.episodes: dict[str, np.ndarray] = {}  # what -> whether a warning about it is in force, per world
         self.row_delta_prev = np.zeros(self.rows.num_rows if self.rows is not None else 0)  # rows after the last step
         self.report_layout = None  # where each world's named rows are (warpsoft.record.Layout), at the first step
         self._stepped = False

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -13,7 +14,45 @@ class ConvergenceWarning(UserWarning):
     """An iterative solve stopped at its iteration cap above its tolerance."""
 
 
-@dataclass
+# a world's fields and their defaults (a type: a new one for each world, made when first read)
+FIELDS: dict[str, object] = {
+    "cg_iterations": 0, "resolve_iterations": 0, "resolve_residual": 0.0, "qp_status": "", "qp_seconds": 0.0,
+    "qp_pivots": 0, "inverted_elements": 0, "linearization_error": 0.0, "newton_iterations": 0,
+    "newton_residual": 0.0, "contacts": 0, "contact_force": 0.0, "friction_force": 0.0, "penetration": 0.0,
+    "actuator_residual": dict, "effector_error": dict, "actuator_delta": dict, "actuator_lambda": dict,
+    "effectors": dict, "targets": dict, "rigid_bodies": dict, "attachments": dict}
+
+
+class WorldRecord:
+    """Every world's share of one step as the step made it, for all worlds at once: a number per
+    world in ``columns`` (name -> ``(worlds,)`` array), or in ``makers`` a function of the world
+    that makes its value (its dictionaries by name). A world's :class:`WorldStats` reads its own
+    when first asked, so a step of many worlds builds no per-world Python objects unless they
+    are read (1024 Diamonds, CPU VM: the report's loops over the worlds took about 11 ms a
+    step; docs/performance.md)."""
+
+    def __init__(self, worlds: int):
+        self.worlds = worlds
+        self.columns: dict[str, np.ndarray] = {}
+        self.makers: dict[str, Callable[[int], object]] = {}
+
+    def add(self, name: str, values: np.ndarray) -> None:
+        """Add ``values`` ``(worlds,)`` to column ``name`` (a step's Newton iterations add up)."""
+        old = self.columns.get(name)
+        self.columns[name] = np.array(values) if old is None else old + values
+
+    def value(self, name: str, w: int) -> object:
+        """World ``w``'s ``name`` as the step recorded it, or :data:`MISSING`."""
+        column = self.columns.get(name)
+        if column is not None:
+            return column[w].item()  # (a Python number, as the fields always were)
+        maker = self.makers.get(name)
+        return MISSING if maker is None else maker(w)
+
+
+MISSING = object()  # a field the step did not record for all worlds: set on the world, or its default
+
+
 class WorldStats:
     """One world's share of a step: the iterations of its linear solve (when the solver counts
     them per world), its multipliers' resolution (Gauss-Seidel sweeps and last change, or the
@@ -32,28 +71,67 @@ class WorldStats:
     step, by name; with attachments, the force each puts on its soft nodes (N, their sum; its
     rigid body takes the opposite), by name."""
 
-    cg_iterations: int = 0
-    resolve_iterations: int = 0
-    resolve_residual: float = 0.0
-    qp_status: str = ""
-    qp_seconds: float = 0.0
-    qp_pivots: int = 0
-    inverted_elements: int = 0
-    linearization_error: float = 0.0
-    newton_iterations: int = 0
-    newton_residual: float = 0.0
-    contacts: int = 0
-    contact_force: float = 0.0
-    friction_force: float = 0.0
-    penetration: float = 0.0
-    actuator_residual: dict[str, float] = field(default_factory=dict)
-    effector_error: dict[str, float] = field(default_factory=dict)
-    actuator_delta: dict[str, float] = field(default_factory=dict)
-    actuator_lambda: dict[str, float] = field(default_factory=dict)
-    effectors: dict[str, np.ndarray] = field(default_factory=dict)
-    targets: dict[str, np.ndarray] = field(default_factory=dict)
-    rigid_bodies: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
-    attachments: dict[str, np.ndarray] = field(default_factory=dict)
+    __slots__ = ("_record", "_world", "_values")
+
+    def __init__(self, record: WorldRecord | None = None, world: int = 0, **values):
+        unknown = set(values) - FIELDS.keys()
+        if unknown:
+            raise TypeError(f"WorldStats: no field named {', '.join(sorted(unknown))}")
+        self._record, self._world, self._values = record, world, values
+
+    def _get(self, name: str) -> object:
+        """The field ``name``: set on this world, else recorded for all worlds, else its default
+        (kept once made, so that a dictionary read twice is the same one and takes changes)."""
+        if name in self._values:
+            return self._values[name]
+        value = MISSING if self._record is None else self._record.value(name, self._world)
+        if value is MISSING:
+            default = FIELDS[name]
+            value = default() if isinstance(default, type) else default
+        self._values[name] = value
+        return value
+
+    def as_dict(self) -> dict[str, object]:
+        """Every field, by name."""
+        return {name: self._get(name) for name in FIELDS}
+
+    def __repr__(self) -> str:
+        return "WorldStats(" + ", ".join(f"{k}={v!r}" for k, v in self.as_dict().items()) + ")"
+
+
+def _world_field(name: str) -> property:
+    def get(self: WorldStats):
+        return self._get(name)
+
+    def put(self: WorldStats, value) -> None:
+        self._values[name] = value
+
+    return property(get, put, doc=f"The world's ``{name}`` (see :class:`WorldStats`).")
+
+
+for _name in FIELDS:
+    setattr(WorldStats, _name, _world_field(_name))
+
+
+class Worlds(Sequence):
+    """``StepStats.worlds``: each world's :class:`WorldStats`, made when first read from the
+    step's :class:`WorldRecord` (then kept: what is set on it stays)."""
+
+    def __init__(self, record: WorldRecord):
+        self.record = record
+        self._made: list[WorldStats | None] = [None] * record.worlds
+
+    def __len__(self) -> int:
+        return self.record.worlds
+
+    def __getitem__(self, w):
+        if isinstance(w, slice):
+            return [self[i] for i in range(*w.indices(len(self)))]
+        w = range(len(self))[w]  # (negative indices; out of range raises IndexError)
+        ws = self._made[w]
+        if ws is None:
+            ws = self._made[w] = WorldStats(self.record, w)
+        return ws
 
 
 def _of_the_world(name: str):
@@ -102,7 +180,7 @@ class StepStats:
     newton_residual: float = 0.0
     line_searches: int = 0
     factorizations: int = 0
-    worlds: list[WorldStats] = field(default_factory=list)
+    worlds: Sequence[WorldStats] = field(default_factory=list)
 
     resolve_iterations = _of_the_world("resolve_iterations")
     resolve_residual = _of_the_world("resolve_residual")

@@ -27,8 +27,9 @@ from .launch import launch
 from .resolve import RowInputs, solve_inverse
 from .resolve.qpcc import ContactQP, solve_inverse_contacts
 from .resolve.qpcc_friction import FrictionQP, solve_inverse_friction
+from .scene.actuator import Ramp
 from .state import Control
-from .stats import ConvergenceWarning, StepStats, WorldStats
+from .stats import ConvergenceWarning, StepStats, WorldRecord, Worlds
 
 if TYPE_CHECKING:
     from .simulator import Simulator
@@ -44,7 +45,7 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     iteration in one transfer (and one more before the QP): see ``readback.py``.
     """
     m, rows = sim.model, sim.rows
-    stats = StepStats(sim.step_index + 1, sim.time + m.dt, worlds=[WorldStats() for _ in range(m.num_worlds)])
+    stats = StepStats(sim.step_index + 1, sim.time + m.dt, worlds=Worlds(WorldRecord(m.num_worlds)))
     start = time.perf_counter()
     actuated = rows is not None and rows.num_columns > 0  # rows that carry a force: actuators, contacts
     inverse = actuated and any(s.inverse and rows.world_actuators[w] for w, s in enumerate(m.scenes))
@@ -356,8 +357,8 @@ def finish_solve(sim: Simulator, stats: StepStats, res) -> None:
     stats.compliance_iterations += res.iterations if na else 0
     stats.converged = stats.converged and res.converged
     per_world = getattr(res, "world_iterations", None)  # when the solver counts them per world
-    for w, ws in enumerate(stats.worlds):
-        ws.cg_iterations += int(per_world[w]) if per_world is not None else res.iterations
+    stats.worlds.record.add("cg_iterations", np.asarray(per_world, dtype=np.int64) if per_world is not None
+                            else np.full(len(stats.worlds), res.iterations, dtype=np.int64))
     if not res.converged:
         msg = (f"step {stats.index}: CG ({what}) stopped after {res.iterations} iterations at relative residual "
                f"{res.residual:.3e} > tolerance {sim.solver.tolerance:.1e}; {convergence_advice(sim)}")
@@ -418,21 +419,29 @@ def actuator_values(sim: Simulator, t: float, controls: list[Control | None]) ->
 
 def own_inputs(sim: Simulator, t: float) -> np.ndarray:
     """Every actuator row's own input at ``t`` (``(rows,)``): the numbers laid out once, at the
-    first call, and the schedules called in one loop; a schedule that raises or gives no finite
-    number is then named by :meth:`~warpsoft.scene.actuator.Actuator.input_at`, as each input
-    was read before (1024 Diamonds, 4096 cable schedules on the CPU VM: 2.8-5.7 -> 1.0-2.1 ms a step)."""
+    first call, the :class:`~warpsoft.scene.actuator.Ramp` inputs evaluated all at once, and the
+    other schedules called in one loop; a schedule that raises or gives no finite number is then
+    named by :meth:`~warpsoft.scene.actuator.Actuator.input_at`, as each input was read before
+    (1024 Diamonds, 4096 cable schedules on the CPU VM: 2.8-5.7 -> 1.0-2.1 ms a step as one loop;
+    as ramps, docs/performance.md)."""
     if sim.own_inputs is None:
-        rows, base, place, schedules = sim.rows, np.zeros(sim.rows.num_rows), [], []
+        rows, base, place, schedules, ramps = sim.rows, np.zeros(sim.rows.num_rows), [], [], []
         for acts, start in zip(rows.actuators, rows.world_row_start.tolist(), strict=False):
             for k, a in enumerate(acts):
-                if callable(a.value):
+                if isinstance(a.value, Ramp):
+                    ramps.append((start + k, a.value.row()))
+                elif callable(a.value):
                     place.append(start + k)
                     schedules.append(a)
                 else:
                     base[start + k] = a.value
-        sim.own_inputs = (base, np.array(place, dtype=np.int64), [a.value for a in schedules], schedules)
-    base, place, calls, schedules = sim.own_inputs
+        ramp_rows = np.array([r for r, _ in ramps], dtype=np.int64)
+        ramp_table = np.array([row for _, row in ramps], dtype=np.float64).reshape(-1, 4)
+        sim.own_inputs = (base, np.array(place, dtype=np.int64), [a.value for a in schedules], schedules,
+                          ramp_rows, ramp_table)
+    base, place, calls, schedules, ramp_rows, ramp_table = sim.own_inputs
     values = base.copy()
+    values[ramp_rows] = Ramp.at(ramp_table, t)  # (finite: their numbers were checked when made)
     try:
         values[place] = [float(f(t)) for f in calls]
         if np.isfinite(values[place]).all():
@@ -528,15 +537,15 @@ def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray
 def record_newton(sim: Simulator, stats: StepStats) -> None:
     """Each world's Newton iterations and final relative residual; a warning, once per episode,
     for a world that ended above the tolerance."""
-    newton = sim.newton
-    for w, ws in enumerate(stats.worlds):
-        ws.newton_iterations, ws.newton_residual = int(newton.iterations[w]), float(newton.error[w])
-        if watch.begins(sim, ("newton", w), ws.newton_residual > newton.tolerance):
-            stats.warnings.append(
-                f"step {stats.index}{sim.world_label(w)}: the implicit step did not converge: nonlinear residual "
-                f"{ws.newton_residual:.3g} > newton_tolerance {newton.tolerance:g} after {ws.newton_iterations} "
-                "Newton iteration(s); the motion is not resolved within the step: a smaller dt, or more "
-                "newton_iterations")
+    newton, columns = sim.newton, stats.worlds.record.columns
+    columns["newton_iterations"] = np.array(newton.iterations, dtype=np.int64)
+    columns["newton_residual"] = np.array(newton.error, dtype=np.float64)
+    for w in watch.beginning(sim, "newton", columns["newton_residual"] > newton.tolerance):
+        stats.warnings.append(
+            f"step {stats.index}{sim.world_label(int(w))}: the implicit step did not converge: nonlinear residual "
+            f"{newton.error[w]:.3g} > newton_tolerance {newton.tolerance:g} after {newton.iterations[w]} "
+            "Newton iteration(s); the motion is not resolved within the step: a smaller dt, or more "
+            "newton_iterations")
     stats.newton_iterations = int(newton.iterations.max())
     stats.newton_residual = float(newton.error.max())
     stats.line_searches = newton.trials

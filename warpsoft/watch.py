@@ -17,11 +17,30 @@ if TYPE_CHECKING:
     from .simulator import Simulator
 
 
-def begins(sim: Simulator, key: tuple, active: bool) -> bool:
-    """Whether a warning episode ``key`` begins now (it was not in force and ``active`` is)."""
-    was = sim.episodes.get(key, False)
-    sim.episodes[key] = bool(active)
-    return bool(active) and not was
+def beginning(sim: Simulator, what: str, active: np.ndarray) -> np.ndarray:
+    """The worlds where a warning episode ``what`` begins now: ``active`` ``(worlds,)`` (bool) is
+    whether it is in force in each world, and it begins where it was not in force at the last
+    step. Records ``active`` for the next step."""
+    was = episodes(sim, what)
+    begin = np.flatnonzero(active & ~was)
+    was[:] = active
+    return begin
+
+
+def begins(sim: Simulator, what: str, w: int, active: bool) -> bool:
+    """:func:`beginning` for world ``w`` alone."""
+    was = episodes(sim, what)
+    began = bool(active) and not was[w]
+    was[w] = bool(active)
+    return began
+
+
+def episodes(sim: Simulator, what: str) -> np.ndarray:
+    """Whether a warning episode ``what`` is in force, per world ``(worlds,)`` (bool; changed in place)."""
+    flags = sim.episodes.get(what)
+    if flags is None:
+        flags = sim.episodes[what] = np.zeros(sim.model.num_worlds, dtype=bool)
+    return flags
 
 
 ABSURD_STEP = 10.0  # a node moving this many times the model's size in one step: rejected like a NaN
@@ -35,7 +54,7 @@ def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], warn: 
     judged on its own nodes; the error names the worlds that failed (``SimulationError.worlds``)."""
     bad, largest = host["health_flag"], np.sqrt(host["health_step"])  # (worlds,)
     failed = [int(w) for w in np.flatnonzero(bad)]
-    absurd = [w for w in range(len(bad)) if not bad[w] and largest[w] > ABSURD_STEP * sim.size]
+    absurd = [int(w) for w in np.flatnonzero((bad == 0) & (largest > ABSURD_STEP * sim.size))]
     if warn:
         for w in np.flatnonzero(largest > sim.size):
             stats.warnings.append(f"step {stats.index}{sim.world_label(int(w))}: a node moved {largest[w]:.3g} m in "
@@ -60,13 +79,13 @@ def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], warn: 
 def inverted_elements(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
     """Each world's count of elements turned inside out (``det F <= 0``) after the step; a
     warning when some appear (a very soft body under load, a step too large)."""
-    for w, ws in enumerate(stats.worlds):
-        ws.inverted_elements = int(host["inverted"][w])
-        if begins(sim, ("inverted", w), ws.inverted_elements > 0):
-            stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: {ws.inverted_elements} element(s) turned "
-                                  "inside out (det F <= 0): the material is too soft for the loads, or the step too "
-                                  "large; the step goes on (the element models turn inverted elements back), but the "
-                                  "result is not physical there")
+    counts = host["inverted"].astype(np.int64)
+    stats.worlds.record.columns["inverted_elements"] = counts
+    for w in beginning(sim, "inverted", counts > 0):
+        stats.warnings.append(f"step {stats.index}{sim.world_label(int(w))}: {counts[w]} element(s) turned "
+                              "inside out (det F <= 0): the material is too soft for the loads, or the step too "
+                              "large; the step goes on (the element models turn inverted elements back), but the "
+                              "result is not physical there")
 
 
 def contacts(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarray]) -> None:
@@ -85,7 +104,7 @@ def contacts(sim: Simulator, stats: StepStats, w: int, host: dict[str, np.ndarra
     ws.friction_force = float(np.linalg.norm(lam[:, 1:], axis=1).sum()) if rps > 1 else 0.0
     ws.penetration = float(max(0.0, -gaps.min())) if used else 0.0
     found, capacity = int(host["contacts_found"][w]), int(rows.world_contacts[w]) // rps
-    if begins(sim, ("overflow", w), found > capacity):
+    if begins(sim, "overflow", w, found > capacity):
         stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: {found} points came within contact distance "
                               f"of an obstacle, a rigid body or their own surface, more than the scene's {capacity} "
                               f"contact rows: the first {capacity} (in node order) were kept, the others may go "
@@ -154,7 +173,7 @@ def out_of_reach(sim: Simulator, stats: StepStats, w: int, delta: np.ndarray, la
                     found.append(f"{act.name} (at its {what}, {bound:g})")
                     break
         held = tuple(found)
-    if begins(sim, ("out of reach", w), bool(held)):  # said once (the bounds may take turns after)
+    if begins(sim, "out of reach", w, bool(held)):  # said once (the bounds may take turns after)
         stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: the target is out of reach: "
                               f"effector '{worst[0]}' misses it by {worst[1]:.3g} m; held back by {', '.join(held)}")
     sim.last_effector_error[w] = worst[1]

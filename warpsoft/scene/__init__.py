@@ -6,7 +6,7 @@ A scene is validated as it is written, with errors that name the component and t
 """
 
 from . import obstacles, regions, shapes
-from .actuator import Actuator
+from .actuator import Actuator, Ramp
 from .cable import Cable
 from .cavity import Cavity
 from .effector import Effector, waypoints
@@ -19,7 +19,7 @@ from .shapes import Ball, Cone, Cylinder, mesh_shape, mesh_surface
 __all__ = [
     "Actuator", "Ball", "Body", "Box", "Cable", "Cavity", "Cone", "Cylinder", "Effector", "Fixture", "HalfSpace",
     "InBox", "InHalfSpace", "InSphere", "OnPlane",
-    "Load", "Material", "Plane", "Probe", "Region", "Scene", "Sphere", "TetMesh", "box_grid", "load_mesh",
+    "Load", "Material", "Plane", "Probe", "Ramp", "Region", "Scene", "Sphere", "TetMesh", "box_grid", "load_mesh",
     "load_weights", "mesh_shape", "mesh_surface", "obstacles", "regions", "rotation_about", "save_mesh", "shapes",
     "waypoints",
 ]
