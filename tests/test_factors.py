@@ -88,7 +88,8 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout):
     product equals the host factor's. A world whose columns all converged is not touched. So
     with each row's entries one after another, as the CPU lays them out; in slices of 4 rows,
     as CUDA does (a warp of 32 there); and with every level through the kernel that CUDA gives
-    long rows, whose lanes add by warp shuffles (one lane a row here)."""
+    long rows, whose lanes add by warp shuffles (one lane a row here). With few worlds running,
+    their tasks alone, the same numbers."""
     sim = ws.Simulator(ws.finalize([beam(), beam(3e6), beam(cells=16)]), solver="direct")
     sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
     pre = WorldFactors(sim.operator, 2, "float64")
@@ -129,6 +130,22 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout):
         pre.unroll = unroll
         pre.apply(r, z)
         assert np.array_equal(z.numpy(), fresh.numpy())
+    # few worlds running: their tasks alone, launched for a tier of running worlds (1 or 2 of
+    # them here, or never: every world's tasks): the same numbers, the others untouched
+    for done in ([0], [0, 1], [1]):
+        s = np.zeros((2, 3, NUM_SCALARS))
+        s[:, done, DONE] = 1.0
+        scal.assign(s)
+        skipped = np.isin(sim.model.node_world_np, done)
+        for tiers in ([], [1], [2], [1, 2]):
+            pre.tail(tiers)
+            pre.x.zero_()
+            z.zero_()
+            pre.apply(r, z)
+            assert np.all(z.numpy()[:, skipped] == 0.0)
+            assert np.array_equal(z.numpy()[:, ~skipped], fresh.numpy()[:, ~skipped]), (done, tiers)
+    with pytest.raises(ValueError, match=r"the tail's tiers must ascend, got \[2, 1\]"):
+        pre.tail([2, 1])
     pre.lanes = 2  # (lanes add by warp shuffles: CUDA's)
     with pytest.raises(ValueError, match="2 lanes a row add by warp shuffles"):
         pre.apply(r, z)

@@ -1,10 +1,11 @@
 """Cost of the sparse factors' ``P^-1`` in a batch of different Diamonds (CUDA): at full load, and
 over one solve's sequence of running worlds (those of the last warm-up step: at CG iteration
-``i`` the worlds that took more than ``i``), each replayed from a graph, for each ``--loads``,
-``--lanes`` and ``--unroll`` (and the product's largest difference from the first's).
+``i`` the worlds that took more than ``i``), each replayed from a graph, for each ``--tail``,
+``--loads``, ``--lanes`` and ``--unroll`` (and the product's largest difference from the first's,
+with every world running and with the last iteration's).
 
-    python tools/bench_levels.py --designs 1024 [--loads indexed whole] [--lanes 16 32] [--unroll 1 4]
-        [--device cuda] [--out out/levels.json]
+    python tools/bench_levels.py --designs 1024 [--tail default none 0.25,0.05] [--loads indexed whole]
+        [--lanes 16 32] [--unroll 1 4] [--device cuda] [--out out/levels.json]
 
 The designs are ``batch_bench.py``'s with as many meshes as designs (set WARPSOFT_MESH_CACHE to
 the meshes made ahead of time: meshing 1024 Diamonds takes minutes).
@@ -24,6 +25,7 @@ from warpsoft.kernels.linear.cg import DONE
 
 import warpsoft as ws
 from warpsoft.io.runner import build_scene
+from warpsoft.linear import factors
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import batch_bench  # noqa: E402
@@ -51,6 +53,9 @@ def main(argv=None) -> int:
                     help="operand rows indexed number by number (CUDA's) or read from their address (the CPU's)")
     ap.add_argument("--lanes", type=int, nargs="*", default=None,
                     help="threads a long row (a power of 2 up to 32; default: the preconditioner's)")
+    ap.add_argument("--tail", nargs="*", default=["default"],
+                    help="the tiers of running worlds whose tasks launch alone: default (the preconditioner's), "
+                         "none, or shares of the worlds, comma-separated (0.25,0.05)")
     ap.add_argument("--warmup", type=int, default=4, help="steps before (their last gives the running worlds)")
     ap.add_argument("--device", default="cuda", help="cuda (what it is for) or cpu (a check that it runs)")
     ap.add_argument("--out", default=None, help="a JSON file for the results")
@@ -77,27 +82,35 @@ def main(argv=None) -> int:
         s[:, its <= i, DONE] = 1.0
         masks.append(wp.array(s, dtype=wp.float64, device=device))
     results, first = [], None
-    kept = pre.whole_rows, pre.lanes
-    for loads, lanes, unroll in [(lo, la, u) for lo in args.loads for la in args.lanes or [pre.lanes]
-                                 for u in args.unroll]:
+    kept = pre.whole_rows, pre.lanes, pre.tiers
+    for tail, loads, lanes, unroll in [(t, lo, la, u) for t in args.tail for lo in args.loads
+                                       for la in args.lanes or [pre.lanes] for u in args.unroll]:
+        shares = factors.TAIL if tail == "default" else [] if tail == "none" else [float(f) for f in tail.split(",")]
+        pre.tail(sorted({int(np.ceil(f * m.num_worlds)) for f in shares}))
         pre.whole_rows, pre.lanes = loads == "whole", lanes
         pre.unroll = unroll
-        pre.watch(masks[0])
-        pre.apply(r, z)
-        got = z.numpy()
+        got = []
+        for mask in (masks[0], masks[-1]):
+            pre.watch(mask)
+            z.zero_()
+            pre.apply(r, z)
+            got.append(z.numpy())
         first = got if first is None else first
-        differs = float(np.abs(got - first).max() / np.abs(first).max())  # relative to the first variant
+        # relative to the first variant's product, with every world running and in the last iteration
+        differs = [float(np.abs(g - f).max() / np.abs(f).max()) for g, f in zip(got, first, strict=True)]
+        pre.watch(masks[0])
         full = replayed(lambda: pre.apply(r, z), device, 10, 5)
         sequence = []
         for mask in masks:
             pre.watch(mask)
             sequence.append(replayed(lambda: pre.apply(r, z), device, 5, 3))
-        results.append({"loads": loads, "lanes": lanes, "unroll": unroll, "full_ms": full,
+        results.append({"tail": pre.tiers, "loads": loads, "lanes": lanes, "unroll": unroll, "full_ms": full,
                         "solve_ms": sum(sequence), "sequence_ms": sequence, "max_difference": differs})
-        print(f"{loads}, {lanes} lanes, unroll {unroll}: P^-1 {full:.3f} ms with every world; a "
+        print(f"tail {pre.tiers}, {loads}, {lanes} lanes, unroll {unroll}: P^-1 {full:.3f} ms with every world; a "
               f"solve's {len(sequence)} {sum(sequence):.2f} ms [{' '.join(f'{t:.2f}' for t in sequence)}]; "
-              f"differs by {differs:.3g}", flush=True)
-    pre.whole_rows, pre.lanes = kept
+              f"differs by {differs[0]:.3g} (every world), {differs[1]:.3g} (the last iteration)", flush=True)
+    pre.whole_rows, pre.lanes = kept[:2]
+    pre.tail(kept[2])
     pre.watch(solver.scal)
     if args.out:
         Path(args.out).write_text(json.dumps({"designs": args.designs, "iterations": its.tolist(),

@@ -180,32 +180,69 @@ def _row_funcs(columns: int, dtype, unroll: int = UNROLL, whole: bool = False):
     return running, entries
 
 
-def level_kernel(columns: int, dtype, step: int = 1, unroll: int = UNROLL, whole: bool = False):
-    """``factor_level(tasks, first, col, val, node_world, world_row, scal, inp, out)`` for ``k =
-    columns`` right-hand sides in precision ``dtype``, a task's entries ``step`` apart, a thread
-    per task, over a level's tasks, which start at ``tasks[first]``, ``unroll`` entries at a time,
-    operand rows read ``whole`` or not (:func:`_row_funcs`). The five are compile-time constants,
-    hence cached per key (a step read from the task, the task then five numbers, took the solve
-    from 7.2 to 15.3 ms on the H200)."""
-    key = ("level", columns, dtype, step, unroll, whole)
+def _task_at(compact: bool):
+    """``task_at(i, first, count, worlds, spans, per)``: the task (an index into ``tasks``) of a
+    level's ``i``-th thread group, or -1 for none. Every world's tasks (``compact`` False): the
+    level's ``i``-th. The running worlds' alone (``compact``): world ``worlds[i // per]`` (the
+    first ``count[0]`` of ``worlds`` run) takes its ``(i % per)``-th task of the level, where its
+    ``spans[w] = (offset, tasks)`` from the level's first."""
+    key = ("task_at", compact)
+    if key in _kernels:
+        return _kernels[key]
+
+    @wp.func
+    def task_at(i: int, first: int, count: wp.array(dtype=wp.int32), worlds: wp.array(dtype=wp.int32),
+                spans: wp.array(dtype=wp.vec2i), per: int) -> int:
+        if wp.static(compact):
+            slot = i // per
+            if slot >= count[0]:
+                return -1
+            span = spans[worlds[slot]]
+            local = i - slot * per
+            if local >= span[1]:
+                return -1
+            return first + span[0] + local
+        return first + i
+
+    _kernels[key] = task_at
+    return task_at
+
+
+def level_kernel(columns: int, dtype, step: int = 1, unroll: int = UNROLL, whole: bool = False,
+                 compact: bool = False):
+    """``factor_level(tasks, first, col, val, node_world, world_row, scal, inp, out, count, worlds,
+    spans, per)`` for ``k = columns`` right-hand sides in precision ``dtype``, a task's entries
+    ``step`` apart, a thread per task, over a level's tasks, which start at ``tasks[first]``,
+    ``unroll`` entries at a time, operand rows read ``whole`` or not (:func:`_row_funcs`): every
+    world's tasks (a converged world's return), or with ``compact`` the running worlds' alone
+    (:func:`_task_at`: a launch of ``running x per`` threads, however many worlds there are). The
+    six are compile-time constants, hence cached per key (a step read from the task, the task
+    then five numbers, took the solve from 7.2 to 15.3 ms on the H200)."""
+    key = ("level", columns, dtype, step, unroll, whole, compact)
     if key in _kernels:
         return _kernels[key]
     K, STEP = columns, step
     sums = wp.types.vector(length=K, dtype=dtype)
     running, entries = _row_funcs(columns, dtype, unroll, whole)
+    task_at = _task_at(compact)
 
     @wp.kernel(module="unique")
     def factor_level(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=wp.int32),
                      val: wp.array(dtype=dtype), node_world: wp.array(dtype=wp.int32),
                      world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
-                     inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype)):
-        t = tasks[first + wp.tid()]
+                     inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype), count: wp.array(dtype=wp.int32),
+                     worlds: wp.array(dtype=wp.int32), spans: wp.array(dtype=wp.vec2i), per: int):
+        at = task_at(wp.tid(), first, count, worlds, spans, per)
+        if at < 0:
+            return  # a running world's thread past its tasks
+        t = tasks[at]
         row = t[0]
         if row < 0:
             return  # padding at the end of a slice
         w = node_world[row // 3]
-        if not running(scal, w):
-            return  # every column of the world converged
+        if wp.static(not compact):
+            if not running(scal, w):
+                return  # every column of the world converged
         base = world_row[w]
         # the diagonal block's inverse on the input, then the rows solved at earlier levels
         acc = entries(sums(), t[1], t[2], STEP, base, col, val, inp)
@@ -244,34 +281,43 @@ def _lane_sum(columns: int, dtype, lanes: int):
     return lane_sum
 
 
-def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL, whole: bool = False):
+def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL, whole: bool = False,
+                       compact: bool = False):
     """:func:`level_kernel` with ``lanes`` neighbouring threads per task (``lanes`` dividing 32; a
-    launch of ``tasks x lanes`` threads): they stride the task's entries, so that a long row
-    keeps ``lanes`` loads in flight and neighbouring threads read neighbouring entries, and warp
-    shuffles add their shares (:func:`_lane_sum`). A block holds ``block_dim / lanes`` tasks: with a
-    tile a task (a block of 32 threads, a tile sum) the SM held half its warps at most (32
-    blocks), and a level of long rows launched a block a row however few worlds still ran
-    (1024 Diamonds: ``P^-1`` 5.54 -> 5.01 ms, docs/performance.md)."""
-    key = ("lanes", columns, dtype, lanes, unroll, whole)
+    launch of ``tasks x lanes`` threads, or ``running x per x lanes`` with ``compact``): they
+    stride the task's entries, so that a long row keeps ``lanes`` loads in flight and
+    neighbouring threads read neighbouring entries, and warp shuffles add their shares
+    (:func:`_lane_sum`). A block holds ``block_dim / lanes`` tasks: with a tile a task (a block of
+    32 threads, a tile sum) the SM held half its warps at most (32 blocks), and a level of long
+    rows launched a block a row however few worlds still ran (1024 Diamonds: ``P^-1`` 5.54 ->
+    5.01 ms, docs/performance.md)."""
+    key = ("lanes", columns, dtype, lanes, unroll, whole, compact)
     if key in _kernels:
         return _kernels[key]
     K, L = columns, lanes
     sums = wp.types.vector(length=K, dtype=dtype)
     running, entries = _row_funcs(columns, dtype, unroll, whole)
     lane_sum = _lane_sum(columns, dtype, lanes)
+    task_at = _task_at(compact)
 
     @wp.kernel(module="unique")
     def factor_level_lanes(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=wp.int32),
                            val: wp.array(dtype=dtype), node_world: wp.array(dtype=wp.int32),
                            world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
-                           inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype)):
+                           inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype),
+                           count: wp.array(dtype=wp.int32), worlds: wp.array(dtype=wp.int32),
+                           spans: wp.array(dtype=wp.vec2i), per: int):
         tid = wp.tid()
         lane = tid % L
-        t = tasks[first + tid // L]
+        at = task_at(tid // L, first, count, worlds, spans, per)
+        if at < 0:
+            return  # (the task's lanes all return)
+        t = tasks[at]
         row = t[0]
         w = node_world[row // 3]
-        if not running(scal, w):
-            return  # every column of the world converged (the task's lanes all return)
+        if wp.static(not compact):
+            if not running(scal, w):
+                return  # every column of the world converged (the task's lanes all return)
         base = world_row[w]
         acc = entries(sums(), t[1] + lane, t[2], L, base, col, val, inp)  # (contiguous entries: step 1)
         acc = entries(acc, t[2] + lane, t[3], L, base, col, val, out)
@@ -282,3 +328,38 @@ def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL, wh
 
     _kernels[key] = factor_level_lanes
     return factor_level_lanes
+
+
+def running_worlds(columns: int):
+    """``running_worlds(scal, count, worlds)``, a thread per world: a world with a column not
+    converged appends itself to ``worlds`` (``count[0]`` of them, in no set order: each task's
+    sums are its own, so the product does not depend on it)."""
+    key = ("running", columns)
+    if key in _kernels:
+        return _kernels[key]
+    running, _ = _row_funcs(columns, wp.float32)
+
+    @wp.kernel(module="unique")
+    def factor_running(scal: wp.array3d(dtype=wp.float64), count: wp.array(dtype=wp.int32),
+                       worlds: wp.array(dtype=wp.int32)):
+        w = wp.tid()
+        if running(scal, w):
+            worlds[wp.atomic_add(count, 0, 1)] = w
+
+    _kernels[key] = factor_running
+    return factor_running
+
+
+@wp.kernel
+def pick_tail(count: wp.array(dtype=wp.int32), tiers: wp.array(dtype=wp.int32), branch: wp.array(dtype=wp.int32)):
+    """One thread: ``branch[j] = 1`` for the smallest tier ``j`` that holds the ``count[0]``
+    running worlds (``tiers`` ascending), or for the last entry (every world's tasks) when none
+    does; 0 elsewhere."""
+    n = tiers.shape[0]
+    pick = wp.int32(n)
+    for j in range(n):
+        branch[j] = 0
+        if pick == n and count[0] <= tiers[j]:
+            pick = wp.int32(j)
+    branch[n] = 0
+    branch[pick] = 1

@@ -23,6 +23,7 @@ for many the factors (bandwidth-bound).
 
 from __future__ import annotations
 
+import math
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
@@ -45,6 +46,10 @@ LANES = 32  # threads a row in the levels of long rows, on CUDA
 LANES_FROM = 128.0  # the mean entries a row from which a level takes them (docs/performance.md)
 WIDTH = 32  # rows a slice of the other levels' entries, on CUDA (a warp's threads read side by side)
 ORDERING = "nested_dissection"  # of the factors: levels, not fill, set the device's time (docs/performance.md)
+# the running worlds' shares (of all worlds) below which a level launches their tasks alone, a tier
+# each: the last CG iterations run a few slow designs, and a launch of every world's tasks cost
+# them about 1.2 ms a P^-1 for 12 worlds of 1024 (docs/performance.md)
+TAIL = (1 / 64, 1 / 16, 1 / 4)
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
 
@@ -78,7 +83,9 @@ class WorldFactors(WorldGroups):
     ``width`` (the slices' rows in the other levels), ``unroll`` (the entries a level's thread
     loads at a time), ``whole_rows`` (the levels read an operand row from its address: the CPU's
     faster way; CUDA indexes its numbers), ``workers`` (the processes that factorize the blocks,
-    :data:`WORKERS`; the GPU machine's 16 for 256 different Diamonds: 49.2 -> 15.2 s).
+    :data:`WORKERS`; the GPU machine's 16 for 256 different Diamonds: 49.2 -> 15.2 s), ``tiers``
+    (the counts of running worlds at or below which the levels launch those worlds' tasks alone,
+    from :data:`TAIL` on CUDA: :meth:`tail`).
     """
 
     capturable = True
@@ -121,6 +128,23 @@ class WorldFactors(WorldGroups):
         self.unroll = kernels.UNROLL  # entries a thread of the levels loads at a time
         self.place = None  # (3 nodes,) each DOF's row among the operands, made at the first refresh
         self.inv_scale = None
+        # the tail: the running worlds (a count, then the list); on CUDA (the CPU's one thread
+        # passes a converged world's tasks at little cost: there it would add three launches)
+        self.running = wp.zeros(1, dtype=wp.int32, device=d)
+        self.running_list = wp.zeros(m.num_worlds, dtype=wp.int32, device=d)
+        self.tail(sorted({math.ceil(f * m.num_worlds) for f in TAIL}) if d.is_cuda else [])
+
+    def tail(self, tiers: list[int]) -> None:
+        """The counts of running worlds at or below which the levels launch the running worlds'
+        tasks alone, sized for that many (ascending; those not below the worlds' count are left
+        out; [] for every world's tasks always). Before a step is captured."""
+        worlds = self.op.model.num_worlds
+        self.tiers = [int(t) for t in tiers if 0 < t < worlds]
+        if self.tiers != sorted(set(self.tiers)):
+            raise ValueError(f"WorldFactors: the tail's tiers must ascend, got {tiers}")
+        d = self.op.model.device
+        self.tiers_d = wp.array(self.tiers or [0], dtype=wp.int32, device=d)
+        self.branch = wp.zeros(len(self.tiers) + 1, dtype=wp.int32, device=d)  # (one of tiers + 1 runs)
 
     @property
     def levels(self) -> tuple[int, int]:
@@ -233,12 +257,14 @@ class WorldFactors(WorldGroups):
             for p, s, o in zip(progs, layouts, offset[:-1], strict=True):
                 col[o + s.place] = p.col
             tasks, levels = [], []
+            per_world = np.zeros((depth, m.num_worlds), dtype=np.int64)  # each level's tasks of each world
             for w in range(m.num_worlds):
                 b = int(self.block_of[w])
                 s = layouts[b]
                 row = np.where(s.row >= 0, 3 * int(m.world_node_start[w]) + s.row, -1)
                 tasks.append(np.column_stack([row, s.start + offset[b]]))
                 levels.append(s.level)
+                per_world[:, w] = np.bincount(s.level, minlength=depth)
             tasks, levels = np.concatenate(tasks), np.concatenate(levels)
             order = np.argsort(levels, kind="stable")  # by level, then world, then slot
             count = np.bincount(levels, minlength=depth)
@@ -246,9 +272,13 @@ class WorldFactors(WorldGroups):
             if tasks.max() >= 2 ** 31:
                 raise ValueError(f"WorldFactors: {tasks.max()} entries pass the 2^31 a Warp index holds; "
                                  "step fewer designs at a time")
+            # each world's tasks in a level: from its offset there (the worlds in order), how many
+            spans = np.stack([np.cumsum(per_world, axis=1) - per_world, per_world], axis=-1)[count > 0]
             solves.append((wp.array(tasks[order].astype(np.int32), dtype=wp.vec4i, device=d),
                            wp.array(col, dtype=wp.int32, device=d), wp.array(val, dtype=self.dtype, device=d),
-                           [(int(f), int(c), bool(lg)) for f, c, lg in zip(firsts, count, long, strict=True) if c]))
+                           [(int(f), int(c), bool(lg), int(most)) for f, c, lg, most
+                            in zip(firsts, count, long, per_world.max(axis=1), strict=True) if c],
+                           wp.array(spans.astype(np.int32), dtype=wp.vec2i, device=d)))
         if self.solves is None:
             self.solves = solves
             self.inv_scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
@@ -264,16 +294,35 @@ class WorldFactors(WorldGroups):
         if self.lanes > 1 and not d.is_cuda:
             raise ValueError(f"WorldFactors: {self.lanes} lanes a row add by warp shuffles, which only CUDA has; "
                              "give the CPU one lane a row")
-        level = kernels.level_kernel(k, self.dtype, self.width, self.unroll, self.whole_rows)
-        lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes,
-                                                                                self.unroll, self.whole_rows)
-        for (tasks, col, val, levels), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x), strict=True):
-            for first, count, long in levels:
-                inputs = [tasks, first, col, val, m.node_world, self.world_row, self._done, inp]
-                if long:  # long rows: `lanes` threads each
-                    launch(lanes, count * self.lanes, inputs=inputs, outputs=[out], device=d)
-                else:
-                    launch(level, count, inputs=inputs, outputs=[out], device=d)
+        if self.tiers:  # the tail: the running worlds' tasks alone, when few run
+            self.running.zero_()
+            launch(kernels.running_worlds(k), m.num_worlds, inputs=[self._done], outputs=[self.running,
+                                                                                          self.running_list], device=d)
+            launch(kernels.pick_tail, 1, inputs=[self.running, self.tiers_d], outputs=[self.branch], device=d)
+            for j, tier in enumerate(self.tiers):
+                wp.capture_if(self.branch[j:j + 1], self._levels, k=k, tier=tier)
+            wp.capture_if(self.branch[len(self.tiers):], self._levels, k=k, tier=0)
+        else:
+            self._levels(k, 0)
         launch(kernels.rotate_out(self.dtype, k), m.num_nodes,
                inputs=[self.x, self.q_rot, m.mask, m.node_world, self.place, self._done], outputs=[z], device=d)
 
+    def _levels(self, k: int, tier: int) -> None:
+        """The two triangular solves, level by level: every world's tasks (``tier`` 0), or those of
+        the running worlds, at most ``tier`` of them (a level's launch: ``tier`` times its most
+        tasks of a world)."""
+        m, d = self.op.model, self.op.model.device
+        compact = tier > 0
+        level = kernels.level_kernel(k, self.dtype, self.width, self.unroll, self.whole_rows, compact)
+        lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes,
+                                                                                self.unroll, self.whole_rows, compact)
+        for (tasks, col, val, levels, spans), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x),
+                                                              strict=True):
+            for j, (first, count, long, most) in enumerate(levels):
+                tail = [self.running, self.running_list, spans[j], most]
+                inputs = [tasks, first, col, val, m.node_world, self.world_row, self._done, inp]
+                threads = tier * most if compact else count
+                if long:  # long rows: `lanes` threads each
+                    launch(lanes, threads * self.lanes, inputs=inputs, outputs=[out, *tail], device=d)
+                else:
+                    launch(level, threads, inputs=inputs, outputs=[out, *tail], device=d)
