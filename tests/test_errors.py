@@ -217,10 +217,15 @@ def test_the_first_region_names_still_work_and_say_their_new_names():
         assert 0 < new(points).sum() < len(points)
 
 
-def test_ramp_inputs_are_evaluated_at_once_as_each_would_be_alone():
+@pytest.mark.parametrize("at_once", [0, 32])
+def test_ramp_inputs_are_evaluated_at_once_as_each_would_be_alone(monkeypatch, at_once):
     """A Ramp goes linearly from its initial input to its value over its duration and holds
-    before and after; the step evaluates a batch's ramps in one array expression, to the bit
-    what each gives called alone, beside numbers and other schedules. Bad numbers are named."""
+    before and after; the step evaluates a batch's ramps in one array expression (from
+    ``RAMPS_AT_ONCE`` of them; 0 here: always), to the bit what each gives called alone, beside
+    numbers and other schedules. Bad numbers are named."""
+    from warpsoft import step
+
+    monkeypatch.setattr(step, "RAMPS_AT_ONCE", at_once)
     ramps = [ws.Ramp(0.004, 0.05), ws.Ramp(2.0, 0.0, start=0.1, initial=1.0), ws.Ramp(-3e-3, 1.5, 0.2, 5e-4)]
     assert ramps[0](0.0) == 0.0 and ramps[0](0.025) == pytest.approx(0.002) and ramps[0](1.0) == 0.004
     assert ramps[1](0.0999) == 1.0 and ramps[1](0.1) == 2.0  # duration 0: a step at its start

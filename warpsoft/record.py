@@ -66,10 +66,13 @@ class Layout:
         self.forces = rows.world_actuators + rows.world_bilateral + rows.world_contacts > 0
         self.gaps = np.zeros(worlds)  # each world's gap to its last linear prediction (keep_gaps)
         # what each world records: direct, its Gauss-Seidel's outcome; inverse, its actuators' reach
-        self.inverse = np.array([bool(scenes[w].inverse) for w in range(worlds)], dtype=bool)
-        self.solved = self.forces & ~self.inverse  # (the worlds whose Gauss-Seidel ran)
-        self.bilateral, self.contact = rows.world_bilateral > 0, rows.world_contacts > 0
-        self.reach = [w for w in range(worlds) if self.inverse[w] and self.actuators[w][1]]
+        # (as lists where a step loops over them: a few worlds then cost no NumPy call)
+        inverse = np.array([bool(scenes[w].inverse) for w in range(worlds)], dtype=bool)
+        self.solved = self.forces & ~inverse  # the worlds whose Gauss-Seidel ran
+        self.some_solved, self.all_solved, self.all_forces = self.solved.any(), self.solved.all(), self.forces.all()
+        self.bilateral = rows.world_bilateral > 0
+        self.contact = np.flatnonzero(rows.world_contacts > 0).tolist()
+        self.reach = [w for w in range(worlds) if inverse[w] and self.actuators[w][1]]
 
 
 def layout(sim: Simulator) -> Layout:
@@ -107,16 +110,18 @@ def record_rows(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -
         "effector_error": lambda w: {name: float(errors[j]) for name, j in lay.targeted[w]},
         "actuator_residual": lambda w: {name: float(missed[j]) for name, _, j in lay.watched[w]},
         "attachments": lambda w: rows.kind("attachment").forces(lam, w) if lay.bilateral[w] else {}}
-    record.columns["linearization_error"] = np.where(lay.forces, gaps, 0.0)
-    for w in np.flatnonzero(lay.contact):
-        watch.contacts(sim, stats, int(w), host)
+    record.columns["linearization_error"] = gaps if lay.all_forces else np.where(lay.forces, gaps, 0.0)
+    for w in lay.contact:
+        watch.contacts(sim, stats, w, host)
     for w in lay.reach:
         start, names = lay.actuators[w]
         watch.out_of_reach(sim, stats, w, delta[start:start + len(names)], lam[start:start + len(names)])
-    if rows.num_columns:  # the direct worlds' Gauss-Seidel: sweeps, last change, converged
+    if rows.num_columns and lay.some_solved:  # the direct worlds' Gauss-Seidel: sweeps, last change, converged
         result = host["resolve"]
-        record.columns["resolve_iterations"] = np.where(lay.solved, result[:, 0], 0).astype(np.int64)
-        record.columns["resolve_residual"] = np.where(lay.solved, result[:, 1], 0.0)
+        sweeps, change = result[:, 0].astype(np.int64), result[:, 1]
+        if not lay.all_solved:
+            sweeps, change = np.where(lay.solved, sweeps, 0), np.where(lay.solved, change, 0.0)
+        record.columns["resolve_iterations"], record.columns["resolve_residual"] = sweeps, change
         for w in np.flatnonzero(lay.solved & (result[:, 2] == 0)):
             stats.warnings.append(f"step {stats.index}{sim.world_label(int(w))}: Gauss-Seidel stopped after "
                                   f"{int(result[w, 0])} sweeps, last change {result[w, 1]:.3e}")

@@ -36,10 +36,10 @@ class WorldRecord:
         self.columns: dict[str, np.ndarray] = {}
         self.makers: dict[str, Callable[[int], object]] = {}
 
-    def add(self, name: str, values: np.ndarray) -> None:
+    def add(self, name: str, values: np.ndarray | list) -> None:
         """Add ``values`` ``(worlds,)`` to column ``name`` (a step's Newton iterations add up)."""
         old = self.columns.get(name)
-        self.columns[name] = np.array(values) if old is None else old + values
+        self.columns[name] = np.array(values) if old is None else old + np.asarray(values)
 
     def value(self, name: str, w: int) -> object:
         """World ``w``'s ``name`` as the step recorded it, or :data:`MISSING`."""

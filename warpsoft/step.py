@@ -357,8 +357,8 @@ def finish_solve(sim: Simulator, stats: StepStats, res) -> None:
     stats.compliance_iterations += res.iterations if na else 0
     stats.converged = stats.converged and res.converged
     per_world = getattr(res, "world_iterations", None)  # when the solver counts them per world
-    stats.worlds.record.add("cg_iterations", np.asarray(per_world, dtype=np.int64) if per_world is not None
-                            else np.full(len(stats.worlds), res.iterations, dtype=np.int64))
+    stats.worlds.record.add("cg_iterations", per_world if per_world is not None
+                            else [res.iterations] * len(stats.worlds))
     if not res.converged:
         msg = (f"step {stats.index}: CG ({what}) stopped after {res.iterations} iterations at relative residual "
                f"{res.residual:.3e} > tolerance {sim.solver.tolerance:.1e}; {convergence_advice(sim)}")
@@ -417,6 +417,9 @@ def actuator_values(sim: Simulator, t: float, controls: list[Control | None]) ->
     return values
 
 
+RAMPS_AT_ONCE = 32  # ramps from which one NumPy expression evaluates them (a few are faster called)
+
+
 def own_inputs(sim: Simulator, t: float) -> np.ndarray:
     """Every actuator row's own input at ``t`` (``(rows,)``): the numbers laid out once, at the
     first call, the :class:`~warpsoft.scene.actuator.Ramp` inputs evaluated all at once, and the
@@ -429,19 +432,24 @@ def own_inputs(sim: Simulator, t: float) -> np.ndarray:
         for acts, start in zip(rows.actuators, rows.world_row_start.tolist(), strict=False):
             for k, a in enumerate(acts):
                 if isinstance(a.value, Ramp):
-                    ramps.append((start + k, a.value.row()))
+                    ramps.append((start + k, a.value))
                 elif callable(a.value):
                     place.append(start + k)
                     schedules.append(a)
                 else:
                     base[start + k] = a.value
         ramp_rows = np.array([r for r, _ in ramps], dtype=np.int64)
-        ramp_table = np.array([row for _, row in ramps], dtype=np.float64).reshape(-1, 4)
+        ramp_table = np.array([ramp.row() for _, ramp in ramps], dtype=np.float64).reshape(-1, 4)
         sim.own_inputs = (base, np.array(place, dtype=np.int64), [a.value for a in schedules], schedules,
-                          ramp_rows, ramp_table)
-    base, place, calls, schedules, ramp_rows, ramp_table = sim.own_inputs
+                          ramp_rows, ramp_table, [ramp for _, ramp in ramps])
+    base, place, calls, schedules, ramp_rows, ramp_table, ramp_calls = sim.own_inputs
     values = base.copy()
-    values[ramp_rows] = Ramp.at(ramp_table, t)  # (finite: their numbers were checked when made)
+    if len(ramp_rows) > RAMPS_AT_ONCE:
+        values[ramp_rows] = Ramp.at(ramp_table, t)  # (finite: their numbers were checked when made)
+    elif len(ramp_rows):
+        values[ramp_rows] = [ramp(t) for ramp in ramp_calls]  # (the same numbers)
+    if not calls:
+        return values
     try:
         values[place] = [float(f(t)) for f in calls]
         if np.isfinite(values[place]).all():
@@ -538,8 +546,7 @@ def record_newton(sim: Simulator, stats: StepStats) -> None:
     """Each world's Newton iterations and final relative residual; a warning, once per episode,
     for a world that ended above the tolerance."""
     newton, columns = sim.newton, stats.worlds.record.columns
-    columns["newton_iterations"] = np.array(newton.iterations, dtype=np.int64)
-    columns["newton_residual"] = np.array(newton.error, dtype=np.float64)
+    columns["newton_iterations"], columns["newton_residual"] = newton.iterations.copy(), newton.error.copy()
     for w in watch.beginning(sim, "newton", columns["newton_residual"] > newton.tolerance):
         stats.warnings.append(
             f"step {stats.index}{sim.world_label(int(w))}: the implicit step did not converge: nonlinear residual "

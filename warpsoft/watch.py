@@ -54,7 +54,8 @@ def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], warn: 
     judged on its own nodes; the error names the worlds that failed (``SimulationError.worlds``)."""
     bad, largest = host["health_flag"], np.sqrt(host["health_step"])  # (worlds,)
     failed = [int(w) for w in np.flatnonzero(bad)]
-    absurd = [int(w) for w in np.flatnonzero((bad == 0) & (largest > ABSURD_STEP * sim.size))]
+    far = largest > ABSURD_STEP * sim.size
+    absurd = [int(w) for w in np.flatnonzero((bad == 0) & far)] if far.any() else []
     if warn:
         for w in np.flatnonzero(largest > sim.size):
             stats.warnings.append(f"step {stats.index}{sim.world_label(int(w))}: a node moved {largest[w]:.3g} m in "
@@ -79,8 +80,7 @@ def health(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray], warn: 
 def inverted_elements(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
     """Each world's count of elements turned inside out (``det F <= 0``) after the step; a
     warning when some appear (a very soft body under load, a step too large)."""
-    counts = host["inverted"].astype(np.int64)
-    stats.worlds.record.columns["inverted_elements"] = counts
+    counts = stats.worlds.record.columns["inverted_elements"] = host["inverted"]  # (a copy, the step's read)
     for w in beginning(sim, "inverted", counts > 0):
         stats.warnings.append(f"step {stats.index}{sim.world_label(int(w))}: {counts[w]} element(s) turned "
                               "inside out (det F <= 0): the material is too soft for the loads, or the step too "

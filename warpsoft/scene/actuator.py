@@ -51,9 +51,10 @@ class Ramp:
             raise SceneError(f"Ramp: duration must be >= 0 s, got {self.duration}")
 
     def __call__(self, t: float) -> float:
-        if self.duration == 0.0:
-            return self.value if t >= self.start else self.initial
-        return self.initial + (self.value - self.initial) * min(max((t - self.start) / self.duration, 0.0), 1.0)
+        value, duration, start, initial = self.value, self.duration, self.start, self.initial
+        if duration == 0.0:
+            return value if t >= start else initial
+        return initial + (value - initial) * min(max((t - start) / duration, 0.0), 1.0)
 
     @staticmethod
     def at(ramps: np.ndarray, t: float) -> np.ndarray:
