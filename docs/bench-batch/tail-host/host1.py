@@ -1,0 +1,55 @@
+"""One robot's host functions, timed by wrappers over 60 steps after 10 (the tree on PYTHONPATH).
+
+    PYTHONPATH=<tree> python host1.py <tree> diamond_inverse|finger [cuda|cpu]
+"""
+
+import functools
+import sys
+import time
+
+import numpy as np
+import warp as wp
+
+import warpsoft as ws
+from warpsoft import record as R
+from warpsoft import step as S
+from warpsoft import watch as W
+from warpsoft.io.runner import build_scene
+
+wp.config.quiet = True
+root, name = sys.argv[1], sys.argv[2]
+device = sys.argv[3] if len(sys.argv) > 3 else "cuda"
+path = {"diamond_inverse": "scenes/diamond.py", "finger": "scenes/finger.py"}[name]
+sim = ws.Simulator(build_scene(f"{root}/{path}", {"mode": "inverse"} if name == "diamond_inverse" else {}),
+                   device=device)
+T = {}
+
+
+def wrap(mod, fname):
+    f = getattr(mod, fname)
+
+    @functools.wraps(f)
+    def timed(*a, **k):
+        t0 = time.perf_counter()
+        try:
+            return f(*a, **k)
+        finally:
+            T[fname] = T.get(fname, 0) + time.perf_counter() - t0
+    setattr(mod, fname, timed)
+
+
+for fname in ["host_inputs", "record_newton", "finish_solve", "iterate", "record_device_qp", "resolve_on_host"]:
+    wrap(S, fname)
+for fname in ["record_rows", "keep_gaps"]:
+    wrap(R, fname)
+for fname in ["health", "inverted_elements"]:
+    wrap(W, fname)
+for _ in range(10):
+    sim.step()
+T.clear()
+steps = []
+for _ in range(60):
+    t0 = time.perf_counter()
+    _ = sim.step().actuator_delta  # (read as a user would)
+    steps.append(time.perf_counter() - t0)
+print(name, root, f"step median {1e3 * np.median(steps):.3f} ms", {k: round(v / 60 * 1e3, 3) for k, v in T.items()})
