@@ -25,15 +25,9 @@ from warpsoft import step as S  # noqa: E402
 from warpsoft import watch as W  # noqa: E402
 from warpsoft.io.runner import build_scene  # noqa: E402
 
-n = int(sys.argv[1])
-steps = int(sys.argv[2]) if len(sys.argv) > 2 else 2
-scenes = [build_scene(ROOT / "scenes/diamond.py", {**d, "mesh_size": 0.03}) for d in bb.designs(n, 4)]
-sim = ws.Simulator(ws.finalize(scenes, "cpu"), device="cpu", solver="pcg", preconditioner="factors",
-                   share_tolerance=0.01)
-T = {}
 
-
-def wrap(mod, name):
+def wrap(mod, name: str, times: dict) -> None:
+    """Time ``mod.name`` into ``times[name]`` (s, summed over its calls)."""
     f = getattr(mod, name)
 
     @functools.wraps(f)
@@ -42,25 +36,36 @@ def wrap(mod, name):
         try:
             return f(*a, **k)
         finally:
-            T[name] = T.get(name, 0) + time.perf_counter() - t0
+            times[name] = times.get(name, 0) + time.perf_counter() - t0
     setattr(mod, name, timed)
 
 
-for name in ["host_inputs", "reuse_factor", "record_newton", "finish_solve", "record_device_qp"]:
-    wrap(S, name)
-for name in ["record_rows", "keep_gaps"]:
-    wrap(R, name)
-for name in ["health", "inverted_elements"]:
-    wrap(W, name)
-for _ in range(2):
-    sim.step()
-T.clear()
-for _ in range(steps):
-    sim.step()
-    t1 = time.perf_counter()  # what making the step's per-world stats costs
-    if hasattr(S, "Worlds"):
-        S.StepStats(1, 0.0, worlds=S.Worlds(S.WorldRecord(n)))
-    else:
-        S.StepStats(1, 0.0, worlds=[S.WorldStats() for _ in range(n)])
-    T["StepStats"] = T.get("StepStats", 0) + time.perf_counter() - t1
-print({k: round(v / steps * 1e3, 2) for k, v in T.items()}, "ms/step")
+def main() -> None:
+    n = int(sys.argv[1])
+    steps = int(sys.argv[2]) if len(sys.argv) > 2 else 2
+    scenes = [build_scene(ROOT / "scenes/diamond.py", {**d, "mesh_size": 0.03}) for d in bb.designs(n, 4)]
+    sim = ws.Simulator(ws.finalize(scenes, "cpu"), device="cpu", solver="pcg", preconditioner="factors",
+                       share_tolerance=0.01)
+    T = {}
+    for name in ["host_inputs", "reuse_factor", "record_newton", "finish_solve", "record_device_qp"]:
+        wrap(S, name, T)
+    for name in ["record_rows", "keep_gaps"]:
+        wrap(R, name, T)
+    for name in ["health", "inverted_elements"]:
+        wrap(W, name, T)
+    for _ in range(2):
+        sim.step()
+    T.clear()
+    for _ in range(steps):
+        sim.step()
+        t1 = time.perf_counter()  # what making the step's per-world stats costs
+        if hasattr(S, "Worlds"):
+            S.StepStats(1, 0.0, worlds=S.Worlds(S.WorldRecord(n)))
+        else:
+            S.StepStats(1, 0.0, worlds=[S.WorldStats() for _ in range(n)])
+        T["StepStats"] = T.get("StepStats", 0) + time.perf_counter() - t1
+    print({k: round(v / steps * 1e3, 2) for k, v in T.items()}, "ms/step")
+
+
+if __name__ == "__main__":
+    main()

@@ -3,9 +3,9 @@
     PYTHONPATH=<tree> python host1.py <tree> diamond_inverse|finger [cuda|cpu]
 """
 
-import functools
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import warp as wp
@@ -16,6 +16,9 @@ from warpsoft import step as S
 from warpsoft import watch as W
 from warpsoft.io.runner import build_scene
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "host-lazy"))
+from study_host import wrap  # noqa: E402  (the timing wrapper of the batch's study)
+
 wp.config.quiet = True
 root, name = sys.argv[1], sys.argv[2]
 device = sys.argv[3] if len(sys.argv) > 3 else "cuda"
@@ -25,25 +28,12 @@ sim = ws.Simulator(build_scene(f"{root}/{path}", {"mode": "inverse"} if name == 
 T = {}
 
 
-def wrap(mod, fname):
-    f = getattr(mod, fname)
-
-    @functools.wraps(f)
-    def timed(*a, **k):
-        t0 = time.perf_counter()
-        try:
-            return f(*a, **k)
-        finally:
-            T[fname] = T.get(fname, 0) + time.perf_counter() - t0
-    setattr(mod, fname, timed)
-
-
 for fname in ["host_inputs", "record_newton", "finish_solve", "iterate", "record_device_qp", "resolve_on_host"]:
-    wrap(S, fname)
+    wrap(S, fname, T)
 for fname in ["record_rows", "keep_gaps"]:
-    wrap(R, fname)
+    wrap(R, fname, T)
 for fname in ["health", "inverted_elements"]:
-    wrap(W, fname)
+    wrap(W, fname, T)
 for _ in range(10):
     sim.step()
 T.clear()
