@@ -40,6 +40,16 @@ def wrap(mod, name: str, times: dict) -> None:
     setattr(mod, name, timed)
 
 
+def wrap_all(step_names: list[str], times: dict) -> None:
+    """Time ``step_names`` of warpsoft.step, and the report's functions (record, watch)."""
+    for name in step_names:
+        wrap(S, name, times)
+    for name in ["record_rows", "keep_gaps"]:
+        wrap(R, name, times)
+    for name in ["health", "inverted_elements"]:
+        wrap(W, name, times)
+
+
 def main() -> None:
     n = int(sys.argv[1])
     steps = int(sys.argv[2]) if len(sys.argv) > 2 else 2
@@ -47,12 +57,7 @@ def main() -> None:
     sim = ws.Simulator(ws.finalize(scenes, "cpu"), device="cpu", solver="pcg", preconditioner="factors",
                        share_tolerance=0.01)
     T = {}
-    for name in ["host_inputs", "reuse_factor", "record_newton", "finish_solve", "record_device_qp"]:
-        wrap(S, name, T)
-    for name in ["record_rows", "keep_gaps"]:
-        wrap(R, name, T)
-    for name in ["health", "inverted_elements"]:
-        wrap(W, name, T)
+    wrap_all(["host_inputs", "reuse_factor", "record_newton", "finish_solve", "record_device_qp"], T)
     for _ in range(2):
         sim.step()
     T.clear()

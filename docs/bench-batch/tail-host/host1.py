@@ -11,13 +11,10 @@ import numpy as np
 import warp as wp
 
 import warpsoft as ws
-from warpsoft import record as R
-from warpsoft import step as S
-from warpsoft import watch as W
 from warpsoft.io.runner import build_scene
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "host-lazy"))
-from study_host import wrap  # noqa: E402  (the timing wrapper of the batch's study)
+from study_host import wrap_all  # noqa: E402  (the timing wrappers of the batch's study)
 
 wp.config.quiet = True
 root, name = sys.argv[1], sys.argv[2]
@@ -28,12 +25,7 @@ sim = ws.Simulator(build_scene(f"{root}/{path}", {"mode": "inverse"} if name == 
 T = {}
 
 
-for fname in ["host_inputs", "record_newton", "finish_solve", "iterate", "record_device_qp", "resolve_on_host"]:
-    wrap(S, fname, T)
-for fname in ["record_rows", "keep_gaps"]:
-    wrap(R, fname, T)
-for fname in ["health", "inverted_elements"]:
-    wrap(W, fname, T)
+wrap_all(["host_inputs", "record_newton", "finish_solve", "iterate", "record_device_qp", "resolve_on_host"], T)
 for _ in range(10):
     sim.step()
 T.clear()
