@@ -22,9 +22,14 @@ def beginning(sim: Simulator, what: str, active: np.ndarray) -> np.ndarray:
     whether it is in force in each world, and it begins where it was not in force at the last
     step. Records ``active`` for the next step."""
     was = episodes(sim, what)
+    if not (active.any() or was.any()):  # (the common case: no episode in force, nor one beginning)
+        return EMPTY
     begin = np.flatnonzero(active & ~was)
     was[:] = active
     return begin
+
+
+EMPTY = np.zeros(0, dtype=np.int64)
 
 
 def begins(sim: Simulator, what: str, w: int, active: bool) -> bool:
