@@ -161,7 +161,10 @@ def test_the_trunk_between_two_posts_is_held_by_them_and_steers_its_tip_around(s
 def test_a_frictionless_contact_among_rough_ones_steps_as_the_frictionless_qpcc():
     """A rough obstacle far away gives the world friction rows; the beam's contact with the
     frictionless ball then goes through the rounds with the direct model, and must step as the
-    frictionless QPCC does (measured: 7e-10 m)."""
+    frictionless QPCC does, to what the Newton tolerance leaves: the two paths stop their
+    iterations at different points (measured: 7e-10 m on the machine that wrote this test; 3.9e-8 m
+    at the first contact's step, then 3e-9 m at most, on an AMD EPYC VM with the same code, and
+    whatever NumPy, SciPy or piqp)."""
     options = dict(newton_tolerance=1e-6, newton_iterations=30)
     plain = ws.Simulator(pressed_beam(), **options)
     scene = pressed_beam()
@@ -172,5 +175,5 @@ def test_a_frictionless_contact_among_rough_ones_steps_as_the_frictionless_qpcc(
         plain.step()
         b = rough.step()
         assert b.qp_status == "optimal"
-        assert np.abs(plain.positions() - rough.positions()).max() < 1e-8
+        assert np.abs(plain.positions() - rough.positions()).max() < 2e-7
     assert b.contacts >= 1 and b.friction_force == 0.0
