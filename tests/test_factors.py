@@ -82,20 +82,24 @@ def test_sliced_programs_solve_as_the_programs_do(width):
             assert np.sum(s.level == level) % width == 0
 
 
-@pytest.mark.parametrize("layout", ["rows", "slices", "lanes"])
-def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout):
+@pytest.mark.parametrize("layout", ["rows", "slices", "lanes", "sliced lanes"])
+def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout, monkeypatch):
     """At rest the 1 and 3 MPa beams share a factor, the second's inverse scaled by 1/3; the
     product equals the host factor's. A world whose columns all converged is not touched. So
     with each row's entries one after another, as the CPU lays them out; in slices of 4 rows,
-    as CUDA does (a warp of 32 there); and with every level through the kernel that CUDA gives
-    long rows, whose lanes add by warp shuffles (one lane a row here). With few worlds running,
-    their tasks alone, the same numbers."""
+    as CUDA does (a warp of 32 there); with every level through the kernel that CUDA gives
+    long rows, whose lanes add by warp shuffles (one lane a row here); and with the slices'
+    rows through that kernel, as CUDA's tail runs them (their entries ``width`` apart). With few
+    worlds running, their tasks alone, the same numbers."""
     sim = ws.Simulator(ws.finalize([beam(), beam(3e6), beam(cells=16)]), solver="direct")
     sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
     pre = WorldFactors(sim.operator, 2, "float64")
     if layout == "lanes":
         pre.lanes, pre.lanes_from = 1, 0.0
-    pre.width = 4 if layout == "slices" else 1
+    if layout == "sliced lanes":  # (the lanes' kernel with one lane: the CPU has no shuffles)
+        monkeypatch.setattr(kernels, "level_kernel", lambda k, dtype, step, unroll, whole, compact:
+                            kernels.level_kernel_lanes(k, dtype, 1, unroll, whole, compact, step))
+    pre.width = 4 if "slices" in layout or layout == "sliced lanes" else 1
     scal = wp.zeros((2, 3, NUM_SCALARS), dtype=wp.float64)
     pre.watch(scal)
     pre.prepare()

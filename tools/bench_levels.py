@@ -1,11 +1,12 @@
 """Cost of the sparse factors' ``P^-1`` in a batch of different Diamonds (CUDA): at full load, and
 over one solve's sequence of running worlds (those of the last warm-up step: at CG iteration
 ``i`` the worlds that took more than ``i``), each replayed from a graph, for each ``--tail``,
-``--loads``, ``--lanes`` and ``--unroll`` (and the product's largest difference from the first's,
-with every world running and with the last iteration's).
+``--loads``, ``--lanes``, ``--unroll``, ``--short-lanes`` and ``--tail-lanes`` (and the product's
+largest difference from the first's, with every world running and with the last iteration's).
 
     python tools/bench_levels.py --designs 1024 [--tail default none 0.25,0.05] [--loads indexed whole]
-        [--lanes 16 32] [--unroll 1 4] [--device cuda] [--out out/levels.json]
+        [--lanes 16 32] [--unroll 1 4] [--short-lanes 1 4] [--tail-lanes 1 32,32,8] [--device cuda]
+        [--out out/levels.json]
 
 The designs are ``batch_bench.py``'s with as many meshes as designs (set WARPSOFT_MESH_CACHE to
 the meshes made ahead of time: meshing 1024 Diamonds takes minutes).
@@ -53,6 +54,12 @@ def main(argv=None) -> int:
                     help="operand rows indexed number by number (CUDA's) or read from their address (the CPU's)")
     ap.add_argument("--lanes", type=int, nargs="*", default=None,
                     help="threads a long row (a power of 2 up to 32; default: the preconditioner's)")
+    ap.add_argument("--short-lanes", type=int, nargs="*", default=None,
+                    help="threads a short row (the sliced levels') with every world's tasks (default: the "
+                         "preconditioner's)")
+    ap.add_argument("--tail-lanes", nargs="*", default=None,
+                    help="threads a short row in the tail, a number per tier, comma-separated (32,32,8; the "
+                         "last serves any more tiers; default: the preconditioner's)")
     ap.add_argument("--tail", nargs="*", default=["default"],
                     help="the tiers of running worlds whose tasks launch alone: default (the preconditioner's), "
                          "none, or shares of the worlds, comma-separated (0.25,0.05)")
@@ -82,13 +89,15 @@ def main(argv=None) -> int:
         s[:, its <= i, DONE] = 1.0
         masks.append(wp.array(s, dtype=wp.float64, device=device))
     results, first = [], None
-    kept = pre.whole_rows, pre.lanes, pre.tiers
-    for tail, loads, lanes, unroll in [(t, lo, la, u) for t in args.tail for lo in args.loads
-                                       for la in args.lanes or [pre.lanes] for u in args.unroll]:
+    kept = pre.whole_rows, pre.lanes, pre.tiers, pre.short_lanes, pre.tail_lanes
+    tail_lanes = [[int(n) for n in t.split(",")] for t in args.tail_lanes] if args.tail_lanes else [pre.tail_lanes]
+    for tail, loads, lanes, unroll, short, tail_short in [
+            (t, lo, la, u, sh, tl) for t in args.tail for lo in args.loads for la in args.lanes or [pre.lanes]
+            for u in args.unroll for sh in args.short_lanes or [pre.short_lanes] for tl in tail_lanes]:
         shares = factors.TAIL if tail == "default" else [] if tail == "none" else [float(f) for f in tail.split(",")]
         pre.tail(sorted({int(np.ceil(f * m.num_worlds)) for f in shares}))
         pre.whole_rows, pre.lanes = loads == "whole", lanes
-        pre.unroll = unroll
+        pre.unroll, pre.short_lanes, pre.tail_lanes = unroll, short, tail_short
         got = []
         for mask in (masks[0], masks[-1]):
             pre.watch(mask)
@@ -104,13 +113,16 @@ def main(argv=None) -> int:
         for mask in masks:
             pre.watch(mask)
             sequence.append(replayed(lambda: pre.apply(r, z), device, 5, 3))
-        results.append({"tail": pre.tiers, "loads": loads, "lanes": lanes, "unroll": unroll, "full_ms": full,
-                        "solve_ms": sum(sequence), "sequence_ms": sequence, "max_difference": differs})
-        print(f"tail {pre.tiers}, {loads}, {lanes} lanes, unroll {unroll}: P^-1 {full:.3f} ms with every world; a "
+        results.append({"tail": pre.tiers, "loads": loads, "lanes": lanes, "unroll": unroll, "short_lanes": short,
+                        "tail_lanes": tail_short, "full_ms": full, "solve_ms": sum(sequence),
+                        "sequence_ms": sequence, "max_difference": differs})
+        print(f"tail {pre.tiers}, {loads}, {lanes} lanes, unroll {unroll}, short rows {short} lanes, in the tail "
+              f"{tail_short}: P^-1 {full:.3f} ms with every world; a "
               f"solve's {len(sequence)} {sum(sequence):.2f} ms [{' '.join(f'{t:.2f}' for t in sequence)}]; "
               f"differs by {differs[0]:.3g} (every world), {differs[1]:.3g} (the last iteration)", flush=True)
     pre.whole_rows, pre.lanes = kept[:2]
     pre.tail(kept[2])
+    pre.short_lanes, pre.tail_lanes = kept[3:]
     pre.watch(solver.scal)
     if args.out:
         Path(args.out).write_text(json.dumps({"designs": args.designs, "iterations": its.tolist(),

@@ -183,9 +183,9 @@ def _row_funcs(columns: int, dtype, unroll: int = UNROLL, whole: bool = False):
 def _task_at(compact: bool):
     """``task_at(i, first, count, worlds, spans, per)``: the task (an index into ``tasks``) of a
     level's ``i``-th thread group, or -1 for none. Every world's tasks (``compact`` False): the
-    level's ``i``-th. The running worlds' alone (``compact``): world ``worlds[i // per]`` (the
-    first ``count[0]`` of ``worlds`` run) takes its ``(i % per)``-th task of the level, where its
-    ``spans[w] = (offset, tasks)`` from the level's first."""
+    level's ``i``-th of its ``per``. The running worlds' alone (``compact``): world
+    ``worlds[i // per]`` (the first ``count[0]`` of ``worlds`` run) takes its ``(i % per)``-th
+    task of the level, where its ``spans[w] = (offset, tasks)`` from the level's first."""
     key = ("task_at", compact)
     if key in _kernels:
         return _kernels[key]
@@ -202,6 +202,8 @@ def _task_at(compact: bool):
             if local >= span[1]:
                 return -1
             return first + span[0] + local
+        if i >= per:
+            return -1  # (a launch rounded up to whole warps)
         return first + i
 
     _kernels[key] = task_at
@@ -282,19 +284,22 @@ def _lane_sum(columns: int, dtype, lanes: int):
 
 
 def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL, whole: bool = False,
-                       compact: bool = False):
+                       compact: bool = False, step: int = 1):
     """:func:`level_kernel` with ``lanes`` neighbouring threads per task (``lanes`` dividing 32; a
-    launch of ``tasks x lanes`` threads, or ``running x per x lanes`` with ``compact``): they
-    stride the task's entries, so that a long row keeps ``lanes`` loads in flight and
-    neighbouring threads read neighbouring entries, and warp shuffles add their shares
-    (:func:`_lane_sum`). A block holds ``block_dim / lanes`` tasks: with a tile a task (a block of
-    32 threads, a tile sum) the SM held half its warps at most (32 blocks), and a level of long
-    rows launched a block a row however few worlds still ran (1024 Diamonds: ``P^-1`` 5.54 ->
-    5.01 ms, docs/performance.md)."""
-    key = ("lanes", columns, dtype, lanes, unroll, whole, compact)
+    launch of ``tasks x lanes`` threads, or ``running x per x lanes`` with ``compact``, rounded
+    up to whole warps): they stride the task's entries (lane ``l`` its ``l``-th, ``l + lanes``-th,
+    ..., each ``step`` apart), so that a long row keeps ``lanes`` loads in flight, and warp
+    shuffles add their shares (:func:`_lane_sum`). Every thread of a warp reaches the shuffles (a
+    thread with no task adds nothing), so tasks may share warps. A block holds ``block_dim /
+    lanes`` tasks: with a tile a task (a block of 32 threads, a tile sum) the SM held half its
+    warps at most (32 blocks), and a level of long rows launched a block a row however few worlds
+    still ran (1024 Diamonds: ``P^-1`` 5.54 -> 5.01 ms, docs/performance.md). ``step`` > 1: the
+    rows of slices (their entries interleaved), which take lanes in the tail, where few worlds
+    run and a row's thread would walk its entries alone."""
+    key = ("lanes", columns, dtype, lanes, unroll, whole, compact, step)
     if key in _kernels:
         return _kernels[key]
-    K, L = columns, lanes
+    K, L, STEP = columns, lanes, step
     sums = wp.types.vector(length=K, dtype=dtype)
     running, entries = _row_funcs(columns, dtype, unroll, whole)
     lane_sum = _lane_sum(columns, dtype, lanes)
@@ -310,19 +315,22 @@ def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL, wh
         tid = wp.tid()
         lane = tid % L
         at = task_at(tid // L, first, count, worlds, spans, per)
-        if at < 0:
-            return  # (the task's lanes all return)
-        t = tasks[at]
-        row = t[0]
-        w = node_world[row // 3]
-        if wp.static(not compact):
-            if not running(scal, w):
-                return  # every column of the world converged (the task's lanes all return)
-        base = world_row[w]
-        acc = entries(sums(), t[1] + lane, t[2], L, base, col, val, inp)  # (contiguous entries: step 1)
-        acc = entries(acc, t[2] + lane, t[3], L, base, col, val, out)
+        row = wp.int32(-1)  # -1: nothing to write (no task, padding, or a converged world's)
+        acc = sums()
+        if at >= 0:
+            t = tasks[at]
+            if t[0] >= 0:
+                w = node_world[t[0] // 3]
+                live = True
+                if wp.static(not compact):
+                    live = running(scal, w)  # (the same for the task's lanes)
+                if live:
+                    row = t[0]
+                    base = world_row[w]
+                    acc = entries(acc, t[1] + lane * STEP, t[2], L * STEP, base, col, val, inp)
+                    acc = entries(acc, t[2] + lane * STEP, t[3], L * STEP, base, col, val, out)
         total = lane_sum(acc)
-        if lane == 0:
+        if lane == 0 and row >= 0:
             for c in range(K):
                 out[row, c] = total[c]
 

@@ -50,6 +50,13 @@ ORDERING = "nested_dissection"  # of the factors: levels, not fill, set the devi
 # each: the last CG iterations run a few slow designs, and a launch of every world's tasks cost
 # them about 1.2 ms a P^-1 for 12 worlds of 1024 (docs/performance.md)
 TAIL = (1 / 64, 1 / 16, 1 / 4)
+# the threads a row of the sliced levels (short rows) takes in the tail's launches, at each tier:
+# there a row's thread would walk its entries alone, a load after another, while threads are spare
+# (H200, 1024 Diamonds: a P^-1 with 11 worlds running 0.96 -> 0.45 ms, docs/performance.md)
+TAIL_LANES = (32, 16, 4)
+# and when every world's tasks launch, on CUDA: two lanes a row keep a slice's loads side by side
+# and halve the longest row's walk (P^-1 5.38 -> 5.14 ms; four lanes 5.28)
+SHORT_LANES = 2
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
 
@@ -85,7 +92,8 @@ class WorldFactors(WorldGroups):
     faster way; CUDA indexes its numbers), ``workers`` (the processes that factorize the blocks,
     :data:`WORKERS`; the GPU machine's 16 for 256 different Diamonds: 49.2 -> 15.2 s), ``tiers``
     (the counts of running worlds at or below which the levels launch those worlds' tasks alone,
-    from :data:`TAIL` on CUDA: :meth:`tail`).
+    from :data:`TAIL` on CUDA: :meth:`tail`), ``short_lanes`` and ``tail_lanes`` (the threads a
+    row of the sliced levels takes with every world's tasks, and at each tier: :data:`TAIL_LANES`).
     """
 
     capturable = True
@@ -132,6 +140,10 @@ class WorldFactors(WorldGroups):
         # passes a converged world's tasks at little cost: there it would add three launches)
         self.running = wp.zeros(1, dtype=wp.int32, device=d)
         self.running_list = wp.zeros(m.num_worlds, dtype=wp.int32, device=d)
+        # the threads a short row takes when every world's tasks launch, and in the tail (a number
+        # per tier, the last for any more; the CPU's one thread has one lane)
+        self.short_lanes = SHORT_LANES if d.is_cuda else 1
+        self.tail_lanes = list(TAIL_LANES) if d.is_cuda else [1]
         self.tail(sorted({math.ceil(f * m.num_worlds) for f in TAIL}) if d.is_cuda else [])
 
     def tail(self, tiers: list[int]) -> None:
@@ -291,8 +303,9 @@ class WorldFactors(WorldGroups):
         launch(kernels.rotate_in_scaled(self.dtype, k), m.num_nodes,
                inputs=[r, self.q_rot, m.mask, m.node_world, self.place, self.inv_scale, self._done], outputs=[self.u],
                device=d)
-        if self.lanes > 1 and not d.is_cuda:
-            raise ValueError(f"WorldFactors: {self.lanes} lanes a row add by warp shuffles, which only CUDA has; "
+        lanes = max([self.lanes, *(self._short_lanes(t) for t in [0, *self.tiers])])
+        if lanes > 1 and not d.is_cuda:
+            raise ValueError(f"WorldFactors: {lanes} lanes a row add by warp shuffles, which only CUDA has; "
                              "give the CPU one lane a row")
         if self.tiers:  # the tail: the running worlds' tasks alone, when few run
             self.running.zero_()
@@ -307,22 +320,33 @@ class WorldFactors(WorldGroups):
         launch(kernels.rotate_out(self.dtype, k), m.num_nodes,
                inputs=[self.x, self.q_rot, m.mask, m.node_world, self.place, self._done], outputs=[z], device=d)
 
+    def _short_lanes(self, tier: int) -> int:
+        """Threads a short row (the sliced levels') takes at ``tier`` (0: every world's tasks)."""
+        if tier == 0:
+            return self.short_lanes
+        lanes = self.tail_lanes
+        return lanes[min(self.tiers.index(tier), len(lanes) - 1)] if len(lanes) else 1
+
     def _levels(self, k: int, tier: int) -> None:
         """The two triangular solves, level by level: every world's tasks (``tier`` 0), or those of
         the running worlds, at most ``tier`` of them (a level's launch: ``tier`` times its most
-        tasks of a world)."""
+        tasks of a world). A long row takes ``lanes`` threads, a short one ``_short_lanes(tier)``."""
         m, d = self.op.model, self.op.model.device
         compact = tier > 0
-        level = kernels.level_kernel(k, self.dtype, self.width, self.unroll, self.whole_rows, compact)
+        short = self._short_lanes(tier)
+        if short == 1:
+            level = kernels.level_kernel(k, self.dtype, self.width, self.unroll, self.whole_rows, compact)
+        else:
+            level = kernels.level_kernel_lanes(k, self.dtype, short, self.unroll, self.whole_rows, compact, self.width)
         lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes,
                                                                                 self.unroll, self.whole_rows, compact)
         for (tasks, col, val, levels, spans), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x),
                                                               strict=True):
             for j, (first, count, long, most) in enumerate(levels):
-                tail = [self.running, self.running_list, spans[j], most]
+                tail = [self.running, self.running_list, spans[j], most if compact else count]
                 inputs = [tasks, first, col, val, m.node_world, self.world_row, self._done, inp]
                 threads = tier * most if compact else count
-                if long:  # long rows: `lanes` threads each
-                    launch(lanes, threads * self.lanes, inputs=inputs, outputs=[out, *tail], device=d)
-                else:
-                    launch(level, threads, inputs=inputs, outputs=[out, *tail], device=d)
+                per = self.lanes if long else short  # threads a task
+                if per > 1:  # whole warps: each thread reaches the shuffles
+                    threads = -(-threads * per // 32) * 32
+                launch(lanes if long else level, threads, inputs=inputs, outputs=[out, *tail], device=d)
