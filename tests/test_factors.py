@@ -99,7 +99,7 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout, mo
     if layout == "sliced lanes":  # (the lanes' kernel with one lane: the CPU has no shuffles)
         monkeypatch.setattr(kernels, "level_kernel", lambda k, dtype, step, unroll, whole, compact:
                             kernels.level_kernel_lanes(k, dtype, 1, unroll, whole, compact, step))
-    pre.width = 4 if "slices" in layout or layout == "sliced lanes" else 1
+    pre.width = 4 if layout in ("slices", "sliced lanes") else 1
     scal = wp.zeros((2, 3, NUM_SCALARS), dtype=wp.float64)
     pre.watch(scal)
     pre.prepare()

@@ -163,8 +163,8 @@ def test_a_frictionless_contact_among_rough_ones_steps_as_the_frictionless_qpcc(
     frictionless ball then goes through the rounds with the direct model, and must step as the
     frictionless QPCC does, to what the Newton tolerance leaves: the two paths stop their
     iterations at different points (measured: 7e-10 m on the machine that wrote this test; 3.9e-8 m
-    at the first contact's step, then 3e-9 m at most, on an AMD EPYC VM with the same code, and
-    whatever NumPy, SciPy or piqp)."""
+    at the first contact's step, then 3e-9 m at most, on an AMD EPYC VM with the same code, alike
+    with NumPy 2.3 or 2.4, SciPy 1.16 or 1.17, piqp 0.6 or 0.7)."""
     options = dict(newton_tolerance=1e-6, newton_iterations=30)
     plain = ws.Simulator(pressed_beam(), **options)
     scene = pressed_beam()
