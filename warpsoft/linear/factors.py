@@ -93,7 +93,8 @@ class WorldFactors(WorldGroups):
     :data:`WORKERS`; the GPU machine's 16 for 256 different Diamonds: 49.2 -> 15.2 s), ``tiers``
     (the counts of running worlds at or below which the levels launch those worlds' tasks alone,
     from :data:`TAIL` on CUDA: :meth:`tail`), ``short_lanes`` and ``tail_lanes`` (the threads a
-    row of the sliced levels takes with every world's tasks, and at each tier: :data:`TAIL_LANES`).
+    row of the sliced levels takes with every world's tasks, :data:`SHORT_LANES`, and at each tier,
+    :data:`TAIL_LANES`).
     """
 
     capturable = True
