@@ -9,7 +9,7 @@ from warpsoft.kernels.linear import factors as kernels
 from warpsoft.kernels.linear.cg import DONE, NUM_SCALARS
 
 import warpsoft as ws
-from warpsoft.linear import WarpedFactor, WorldFactors
+from warpsoft.linear import WarpedFactor, WorldFactors, factors
 from warpsoft.linear.assembly import CholmodFactor
 from warpsoft.linear.supernodal import Supernodal, sliced
 
@@ -97,8 +97,8 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout, mo
     if layout == "lanes":
         pre.lanes, pre.lanes_from = 1, 0.0
     if layout == "sliced lanes":  # (the lanes' kernel with one lane: the CPU has no shuffles)
-        monkeypatch.setattr(kernels, "level_kernel", lambda k, dtype, step, unroll, whole, compact:
-                            kernels.level_kernel_lanes(k, dtype, 1, unroll, whole, compact, step))
+        monkeypatch.setattr(kernels, "level_kernel", lambda k, dtype, step, unroll, whole, compact, entry:
+                            kernels.level_kernel_lanes(k, dtype, 1, unroll, whole, compact, step, entry))
     pre.width = 4 if layout in ("slices", "sliced lanes") else 1
     scal = wp.zeros((2, 3, NUM_SCALARS), dtype=wp.float64)
     pre.watch(scal)
@@ -153,6 +153,27 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout, mo
     pre.lanes = 2  # (lanes add by warp shuffles: CUDA's)
     with pytest.raises(ValueError, match="2 lanes a row add by warp shuffles"):
         pre.apply(r, z)
+
+
+def test_columns_take_16_bits_where_every_factor_has_room_and_32_elsewhere(monkeypatch):
+    """An entry's column is a place of its factor: 16 bits hold the beams' (and a Diamond's), and
+    the product is the one of 32-bit columns, which a factor of more places than the narrow
+    limit takes (the limit lowered here below the beams' places)."""
+    sim = bent([beam(), beam(3e6), beam(cells=16)])
+    n = sim.model.num_nodes
+    r = wp.array(np.random.default_rng(2).standard_normal((2, n, 3)), dtype=wp.vec3d)
+    got = {}
+    for narrow in (factors.NARROW_PLACES, 10):
+        monkeypatch.setattr(factors, "NARROW_PLACES", narrow)
+        pre = WorldFactors(sim.operator, 2, "float64")
+        pre.watch(wp.zeros((2, 3, NUM_SCALARS), dtype=wp.float64))
+        pre.prepare()
+        z = wp.zeros((2, n), dtype=wp.vec3d)
+        pre.apply(r, z)
+        got[pre.index_dtype] = z.numpy().copy()
+        assert all(s[1].dtype == pre.index_dtype for s in pre.solves)
+    assert set(got) == {wp.uint16, wp.int32}
+    assert np.array_equal(got[wp.uint16], got[wp.int32]) and np.abs(got[wp.int32]).max() > 0
 
 
 def test_each_world_steps_as_alone_and_as_with_dense_blocks():

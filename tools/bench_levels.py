@@ -1,10 +1,12 @@
 """Cost of the sparse factors' ``P^-1`` in a batch of different Diamonds (CUDA): at full load, and
 over one solve's sequence of running worlds (those of the last warm-up step: at CG iteration
 ``i`` the worlds that took more than ``i``), each replayed from a graph, for each ``--tail``,
-``--loads``, ``--lanes``, ``--unroll``, ``--short-lanes`` and ``--tail-lanes`` (and the product's
-largest difference from the first's, with every world running and with the last iteration's).
+``--loads``, ``--lanes``, ``--unroll``, ``--short-lanes``, ``--tail-lanes`` and ``--entries`` (and the
+product's largest difference from the first's, with every world running and with the last
+iteration's).
 
-    python tools/bench_levels.py --designs 1024 [--tail default none 0.25,0.05] [--loads indexed whole]
+    python tools/bench_levels.py --designs 1024 [--entries int32/float32 uint16/float32]
+        [--tail default none 0.25,0.05] [--loads indexed whole]
         [--lanes 16 32] [--unroll 1 4] [--short-lanes 1 4] [--tail-lanes 1 32,32,8] [--device cuda]
         [--out out/levels.json]
 
@@ -46,6 +48,23 @@ def replayed(call, device: str, repeats: int, rounds: int) -> float:
     return 1e3 * batch_bench._median_call(run, device, rounds) / repeats
 
 
+def retype(pre, made: tuple, index, value) -> None:
+    """The factors' entries as made (``made``: their solves and types) in the types ``index`` and
+    ``value`` (new arrays). float16 values (clipped to its range) time their bytes only: as a
+    preconditioner they were tried and not kept (a design's CG diverged, docs/performance.md)."""
+    solves, *_ = made
+    pre.solves = []
+    for tasks, col, val, levels, spans in solves:
+        v = val.numpy().astype(np.float64)
+        if value == wp.float16:
+            top = float(np.finfo(np.float16).max)
+            v = np.clip(v, -top, top)
+        c = col.numpy().astype(wp.dtype_to_numpy(index))
+        pre.solves.append((tasks, wp.array(c, dtype=index, device=col.device),
+                           wp.array(v.astype(wp.dtype_to_numpy(value)), dtype=value, device=val.device), levels, spans))
+    pre.index_dtype, pre.value_dtype = index, value
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--designs", type=int, default=1024)
@@ -60,6 +79,9 @@ def main(argv=None) -> int:
     ap.add_argument("--tail-lanes", nargs="*", default=None,
                     help="threads a short row in the tail, a number per tier, comma-separated (32,32,8; the "
                          "last serves any more tiers; default: the preconditioner's)")
+    ap.add_argument("--entries", nargs="*", default=None,
+                    help="the factors' column and value types, index/value: int32/float32, uint16/float16, ... "
+                         "(default: the preconditioner's)")
     ap.add_argument("--tail", nargs="*", default=["default"],
                     help="the tiers of running worlds whose tasks launch alone: default (the preconditioner's), "
                          "none, or shares of the worlds, comma-separated (0.25,0.05)")
@@ -91,9 +113,13 @@ def main(argv=None) -> int:
     results, first = [], None
     kept = pre.whole_rows, pre.lanes, pre.tiers, pre.short_lanes, pre.tail_lanes
     tail_lanes = [[int(n) for n in t.split(",")] for t in args.tail_lanes] if args.tail_lanes else [pre.tail_lanes]
-    for tail, loads, lanes, unroll, short, tail_short in [
-            (t, lo, la, u, sh, tl) for t in args.tail for lo in args.loads for la in args.lanes or [pre.lanes]
-            for u in args.unroll for sh in args.short_lanes or [pre.short_lanes] for tl in tail_lanes]:
+    made = pre.solves, pre.index_dtype, pre.value_dtype
+    entries = args.entries or [f"{made[1].__name__}/{made[2].__name__}"]
+    for entry, tail, loads, lanes, unroll, short, tail_short in [
+            (en, t, lo, la, u, sh, tl) for en in entries for t in args.tail for lo in args.loads
+            for la in args.lanes or [pre.lanes] for u in args.unroll for sh in args.short_lanes or [pre.short_lanes]
+            for tl in tail_lanes]:
+        retype(pre, made, *(getattr(wp, name) for name in entry.split("/")))
         shares = factors.TAIL if tail == "default" else [] if tail == "none" else [float(f) for f in tail.split(",")]
         pre.tail(sorted({int(np.ceil(f * m.num_worlds)) for f in shares}))
         pre.whole_rows, pre.lanes = loads == "whole", lanes
@@ -103,7 +129,7 @@ def main(argv=None) -> int:
             pre.watch(mask)
             z.zero_()
             pre.apply(r, z)
-            got.append(z.numpy())
+            got.append(z.numpy().copy())  # (on the CPU numpy() is a view of z)
         first = got if first is None else first
         # relative to the first variant's product, with every world running and in the last iteration
         differs = [float(np.abs(g - f).max() / np.abs(f).max()) for g, f in zip(got, first, strict=True)]
@@ -113,13 +139,14 @@ def main(argv=None) -> int:
         for mask in masks:
             pre.watch(mask)
             sequence.append(replayed(lambda: pre.apply(r, z), device, 5, 3))
-        results.append({"tail": pre.tiers, "loads": loads, "lanes": lanes, "unroll": unroll, "short_lanes": short,
-                        "tail_lanes": tail_short, "full_ms": full, "solve_ms": sum(sequence),
+        results.append({"entries": entry, "tail": pre.tiers, "loads": loads, "lanes": lanes, "unroll": unroll,
+                        "short_lanes": short, "tail_lanes": tail_short, "full_ms": full, "solve_ms": sum(sequence),
                         "sequence_ms": sequence, "max_difference": differs})
-        print(f"tail {pre.tiers}, {loads}, {lanes} lanes, unroll {unroll}, short rows {short} lanes, in the tail "
-              f"{tail_short}: P^-1 {full:.3f} ms with every world; a "
+        print(f"entries {entry}, tail {pre.tiers}, {loads}, {lanes} lanes, unroll {unroll}, short rows {short} lanes, "
+              f"in the tail {tail_short}: P^-1 {full:.3f} ms with every world; a "
               f"solve's {len(sequence)} {sum(sequence):.2f} ms [{' '.join(f'{t:.2f}' for t in sequence)}]; "
               f"differs by {differs[0]:.3g} (every world), {differs[1]:.3g} (the last iteration)", flush=True)
+    retype(pre, made, *made[1:])
     pre.whole_rows, pre.lanes = kept[:2]
     pre.tail(kept[2])
     pre.short_lanes, pre.tail_lanes = kept[3:]

@@ -119,7 +119,7 @@ def _row_load(width: int, dtype):
     return load_row
 
 
-def _row_funcs(columns: int, dtype, unroll: int = UNROLL, whole: bool = False):
+def _row_funcs(columns: int, dtype, unroll: int = UNROLL, whole: bool = False, entry: tuple | None = None):
     """The two functions a level's kernels share for ``k = columns`` and ``dtype``: ``running(scal,
     w)``, whether some column of world ``w`` has not converged, and ``entries(acc, e0, e1, step,
     base, col, val, src)``, ``acc`` plus the sums ``sum_e val[e] src[base + col[e], c]`` over
@@ -127,8 +127,11 @@ def _row_funcs(columns: int, dtype, unroll: int = UNROLL, whole: bool = False):
     loads are issued together, then summed in order (the rounding of one loop), so that a thread
     waits for memory once per ``unroll`` entries rather than twice per entry (the column, then
     the operand it points to). ``whole``: an operand row is read whole (:func:`_row_load`), else
-    indexed number by number."""
-    key = ("funcs", columns, dtype, unroll, whole)
+    indexed number by number. ``entry``: the types ``(index, value)`` of ``col`` and ``val``
+    (None: ``(int32, dtype)``; ``uint16`` columns and ``float16`` values read fewer bytes, the
+    sums stay in ``dtype``)."""
+    index, value = (wp.int32, dtype) if entry is None else entry
+    key = ("funcs", columns, dtype, unroll, whole, index, value)
     if key in _kernels:
         return _kernels[key]
     K, U = columns, unroll
@@ -158,21 +161,21 @@ def _row_funcs(columns: int, dtype, unroll: int = UNROLL, whole: bool = False):
         return out
 
     @wp.func
-    def entries(acc: sums, e0: int, e1: int, step: int, base: int, col: wp.array(dtype=wp.int32),
-                val: wp.array(dtype=dtype), src: wp.array2d(dtype=dtype)) -> sums:
+    def entries(acc: sums, e0: int, e1: int, step: int, base: int, col: wp.array(dtype=index),
+                val: wp.array(dtype=value), src: wp.array2d(dtype=dtype)) -> sums:
         total = acc + sums()
         e = wp.int32(e0)
         while e + (U - 1) * step < e1:  # U whole entries left
             v = loads()
             j = places()
             for u in range(U):
-                v[u] = val[e + u * step]
-                j[u] = base + col[e + u * step]
+                v[u] = dtype(val[e + u * step])
+                j[u] = base + wp.int32(col[e + u * step])
             for u in range(U):
                 total = add_row(total, v[u], src, j[u])
             e = e + U * step
         while e < e1:
-            total = add_row(total, val[e], src, base + col[e])
+            total = add_row(total, dtype(val[e]), src, base + wp.int32(col[e]))
             e = e + step
         return total
 
@@ -211,7 +214,7 @@ def _task_at(compact: bool):
 
 
 def level_kernel(columns: int, dtype, step: int = 1, unroll: int = UNROLL, whole: bool = False,
-                 compact: bool = False):
+                 compact: bool = False, entry: tuple | None = None):
     """``factor_level(tasks, first, col, val, node_world, world_row, scal, inp, out, count, worlds,
     spans, per)`` for ``k = columns`` right-hand sides in precision ``dtype``, a task's entries
     ``step`` apart, a thread per task, over a level's tasks, which start at ``tasks[first]``,
@@ -219,18 +222,20 @@ def level_kernel(columns: int, dtype, step: int = 1, unroll: int = UNROLL, whole
     world's tasks (a converged world's return), or with ``compact`` the running worlds' alone
     (:func:`_task_at`: a launch of ``running x per`` threads, however many worlds there are). The
     six are compile-time constants, hence cached per key (a step read from the task, the task
-    then five numbers, took the solve from 7.2 to 15.3 ms on the H200)."""
-    key = ("level", columns, dtype, step, unroll, whole, compact)
+    then five numbers, took the solve from 7.2 to 15.3 ms on the H200). ``entry``: the types of
+    ``col`` and ``val``, :func:`_row_funcs`'."""
+    index, value = (wp.int32, dtype) if entry is None else entry
+    key = ("level", columns, dtype, step, unroll, whole, compact, index, value)
     if key in _kernels:
         return _kernels[key]
     K, STEP = columns, step
     sums = wp.types.vector(length=K, dtype=dtype)
-    running, entries = _row_funcs(columns, dtype, unroll, whole)
+    running, entries = _row_funcs(columns, dtype, unroll, whole, (index, value))
     task_at = _task_at(compact)
 
     @wp.kernel(module="unique")
-    def factor_level(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=wp.int32),
-                     val: wp.array(dtype=dtype), node_world: wp.array(dtype=wp.int32),
+    def factor_level(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=index),
+                     val: wp.array(dtype=value), node_world: wp.array(dtype=wp.int32),
                      world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
                      inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype), count: wp.array(dtype=wp.int32),
                      worlds: wp.array(dtype=wp.int32), spans: wp.array(dtype=wp.vec2i), per: int):
@@ -284,7 +289,7 @@ def _lane_sum(columns: int, dtype, lanes: int):
 
 
 def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL, whole: bool = False,
-                       compact: bool = False, step: int = 1):
+                       compact: bool = False, step: int = 1, entry: tuple | None = None):
     """:func:`level_kernel` with ``lanes`` neighbouring threads per task (``lanes`` dividing 32; a
     launch of ``tasks x lanes`` threads, or ``running x per x lanes`` with ``compact``, rounded
     up to whole warps): they stride the task's entries (lane ``l`` its ``l``-th, ``l + lanes``-th,
@@ -295,19 +300,21 @@ def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL, wh
     warps at most (32 blocks), and a level of long rows launched a block a row however few worlds
     still ran (1024 Diamonds: ``P^-1`` 5.54 -> 5.01 ms, docs/performance.md). ``step`` > 1: the
     rows of slices (their entries interleaved), which take lanes in the tail, where few worlds
-    run and a row's thread would walk its entries alone."""
-    key = ("lanes", columns, dtype, lanes, unroll, whole, compact, step)
+    run and a row's thread would walk its entries alone. ``entry``: the types of ``col`` and
+    ``val``, :func:`_row_funcs`'."""
+    index, value = (wp.int32, dtype) if entry is None else entry
+    key = ("lanes", columns, dtype, lanes, unroll, whole, compact, step, index, value)
     if key in _kernels:
         return _kernels[key]
     K, L, STEP = columns, lanes, step
     sums = wp.types.vector(length=K, dtype=dtype)
-    running, entries = _row_funcs(columns, dtype, unroll, whole)
+    running, entries = _row_funcs(columns, dtype, unroll, whole, (index, value))
     lane_sum = _lane_sum(columns, dtype, lanes)
     task_at = _task_at(compact)
 
     @wp.kernel(module="unique")
-    def factor_level_lanes(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=wp.int32),
-                           val: wp.array(dtype=dtype), node_world: wp.array(dtype=wp.int32),
+    def factor_level_lanes(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=index),
+                           val: wp.array(dtype=value), node_world: wp.array(dtype=wp.int32),
                            world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
                            inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype),
                            count: wp.array(dtype=wp.int32), worlds: wp.array(dtype=wp.int32),

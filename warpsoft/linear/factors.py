@@ -57,6 +57,9 @@ TAIL_LANES = (32, 16, 4)
 # and when every world's tasks launch, on CUDA: two lanes a row keep a slice's loads side by side
 # and halve the longest row's walk (P^-1 5.38 -> 5.14 ms; four lanes 5.28)
 SHORT_LANES = 2
+# an entry's column takes 16 bits when every factor has at most this many places (the Diamond's
+# 3048-5157): 6 bytes an entry instead of 8 (H200, 1024 Diamonds: P^-1 5.14 -> 4.91 ms)
+NARROW_PLACES = 2 ** 16
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
 
@@ -94,7 +97,8 @@ class WorldFactors(WorldGroups):
     (the counts of running worlds at or below which the levels launch those worlds' tasks alone,
     from :data:`TAIL` on CUDA: :meth:`tail`), ``short_lanes`` and ``tail_lanes`` (the threads a
     row of the sliced levels takes with every world's tasks, :data:`SHORT_LANES`, and at each tier,
-    :data:`TAIL_LANES`).
+    :data:`TAIL_LANES`), ``index_dtype`` (the entries' columns: ``uint16`` when every factor has at
+    most :data:`NARROW_PLACES` places, else ``int32``).
     """
 
     capturable = True
@@ -110,6 +114,9 @@ class WorldFactors(WorldGroups):
         super().__init__(operator, columns, refresh_ratio, refresh_floor, share, share_tolerance)
         m, d = operator.model, operator.model.device
         self.dtype = wp.float64 if precision == "float64" else wp.float32
+        # the entries' types: their values in `dtype`, their columns uint16 or int32 (set at the first
+        # lay-out: :data:`NARROW_PLACES`)
+        self.value_dtype, self.index_dtype = self.dtype, None
         rows = 3 * m.num_nodes
         # the solves' operands, flat (3 nodes, k), each world's rows in its factor's order
         # (``place``): input, forward, backward
@@ -238,6 +245,8 @@ class WorldFactors(WorldGroups):
         holds them)."""
         m, d = self.op.model, self.op.model.device
         npd = np.float64 if self.dtype == wp.float64 else np.float32
+        if self.index_dtype is None:  # an entry's column is a place of its factor
+            self.index_dtype = wp.uint16 if max(len(o) for o in self.orders) <= NARROW_PLACES else wp.int32
         if self.place is None:
             # each model DOF's row among the operands: world w's factor place p at 3 n_w + p (the
             # rows its ordering keeps together lie together), -1 for a fixed DOF
@@ -266,7 +275,7 @@ class WorldFactors(WorldGroups):
             if self.solves is not None:
                 self.solves[direction][2].assign(val)
                 continue
-            col = np.zeros(offset[-1], dtype=np.int32)
+            col = np.zeros(offset[-1], dtype=wp.dtype_to_numpy(self.index_dtype))
             for p, s, o in zip(progs, layouts, offset[:-1], strict=True):
                 col[o + s.place] = p.col
             tasks, levels = [], []
@@ -288,7 +297,8 @@ class WorldFactors(WorldGroups):
             # each world's tasks in a level: from its offset there (the worlds in order), how many
             spans = np.stack([np.cumsum(per_world, axis=1) - per_world, per_world], axis=-1)[count > 0]
             solves.append((wp.array(tasks[order].astype(np.int32), dtype=wp.vec4i, device=d),
-                           wp.array(col, dtype=wp.int32, device=d), wp.array(val, dtype=self.dtype, device=d),
+                           wp.array(col, dtype=self.index_dtype, device=d),
+                           wp.array(val, dtype=self.value_dtype, device=d),
                            [(int(f), int(c), bool(lg), int(most)) for f, c, lg, most
                             in zip(firsts, count, long, per_world.max(axis=1), strict=True) if c],
                            wp.array(spans.astype(np.int32), dtype=wp.vec2i, device=d)))
@@ -335,12 +345,14 @@ class WorldFactors(WorldGroups):
         m, d = self.op.model, self.op.model.device
         compact = tier > 0
         short = self._short_lanes(tier)
+        entry = (self.index_dtype, self.value_dtype)
         if short == 1:
-            level = kernels.level_kernel(k, self.dtype, self.width, self.unroll, self.whole_rows, compact)
+            level = kernels.level_kernel(k, self.dtype, self.width, self.unroll, self.whole_rows, compact, entry)
         else:
-            level = kernels.level_kernel_lanes(k, self.dtype, short, self.unroll, self.whole_rows, compact, self.width)
-        lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(k, self.dtype, self.lanes,
-                                                                                self.unroll, self.whole_rows, compact)
+            level = kernels.level_kernel_lanes(k, self.dtype, short, self.unroll, self.whole_rows, compact, self.width,
+                                               entry)
+        lanes = None if self.lanes_from is None else kernels.level_kernel_lanes(
+            k, self.dtype, self.lanes, self.unroll, self.whole_rows, compact, entry=entry)
         for (tasks, col, val, levels, spans), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x),
                                                               strict=True):
             for j, (first, count, long, most) in enumerate(levels):
