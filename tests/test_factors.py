@@ -49,6 +49,26 @@ def test_the_level_programs_solve_with_the_factor_cholmod_made(ordering):
     x = np.empty_like(b)
     x[order] = backward.run(forward.run(b[order]))
     assert np.abs(A @ x - b).max() < 1e-10 * np.abs(b).max()
+    # the same solves as panels of up to 1, 3 or 8 rows of a supernode, which list their columns
+    # once: the rows of a panel are consecutive, each row in one panel, and a panel reads only
+    # rows of earlier levels
+    for rows in (1, 3, 8):
+        panels = analysis.panels(L, rows)
+        assert [p.levels for p in panels] == list(analysis.levels)
+        for p in panels:
+            assert p.height.max() == min(rows, (analysis.end - analysis.first).max())
+            covered = np.concatenate([np.arange(r, r + h) for r, h in zip(p.row, p.height, strict=True)])
+            assert np.array_equal(np.sort(covered), np.arange(assembly.size))
+            level_of_row = np.empty(assembly.size, dtype=np.int64)
+            level_of_row[covered] = np.repeat(p.level, p.height)
+            for t in range(len(p.row)):
+                c0, (ni, no) = p.col_start[t], p.reads[t]
+                assert np.all(level_of_row[p.col[c0 + ni:c0 + ni + no]] < p.level[t])
+        x[order] = panels[1].run(panels[0].run(b[order]))
+        assert np.abs(A @ x - b).max() < 1e-10 * np.abs(b).max()
+    assert len(analysis.panels(L, 8)[0].col) < len(forward.col) / 4  # (the columns listed once a panel)
+    with pytest.raises(ValueError, match="a panel needs at least one row, got 0"):
+        analysis.panels(L, 0)
     L.data[0] *= 2.0  # new values, same pattern: accepted
     analysis.programs(L)
     with pytest.raises(ValueError, match="pattern changed"):
@@ -82,18 +102,20 @@ def test_sliced_programs_solve_as_the_programs_do(width):
             assert np.sum(s.level == level) % width == 0
 
 
-@pytest.mark.parametrize("layout", ["rows", "slices", "lanes", "sliced lanes"])
+@pytest.mark.parametrize("layout", ["rows", "slices", "lanes", "sliced lanes", "panels"])
 def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout, monkeypatch):
     """At rest the 1 and 3 MPa beams share a factor, the second's inverse scaled by 1/3; the
     product equals the host factor's. A world whose columns all converged is not touched. So
     with each row's entries one after another, as the CPU lays them out; in slices of 4 rows,
     as CUDA does (a warp of 32 there); with every level through the kernel that CUDA gives
     long rows, whose lanes add by warp shuffles (one lane a row here); and with the slices'
-    rows through that kernel, as CUDA's tail runs them (their entries ``width`` apart). With few
-    worlds running, their tasks alone, the same numbers."""
+    rows through that kernel, as CUDA's tail runs them (their entries ``width`` apart); and as
+    panels (up to 4 rows of a supernode a task, their columns read once). With few worlds
+    running, their tasks alone, the same numbers."""
     sim = ws.Simulator(ws.finalize([beam(), beam(3e6), beam(cells=16)]), solver="direct")
     sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
-    pre = WorldFactors(sim.operator, 2, "float64")
+    pre = WorldFactors(sim.operator, 2, "float64", layout="panels" if layout == "panels" else "rows")
+    unrolled = "panel_unroll" if layout == "panels" else "unroll"  # (the attribute of the columns loaded at a time)
     if layout == "lanes":
         pre.lanes, pre.lanes_from = 1, 0.0
     if layout == "sliced lanes":  # (the lanes' kernel with one lane: the CPU has no shuffles)
@@ -124,14 +146,14 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout, mo
     # the entries a thread loads together, then sums in order, give the rounding of one at a time
     scal.zero_()
     for unroll in (1, 3):
-        pre.unroll = unroll
+        setattr(pre, unrolled, unroll)
         pre.apply(r, z)
         assert np.array_equal(z.numpy(), fresh.numpy())
     # operand rows indexed number by number, as CUDA reads them (the CPU reads them from their
     # address): the same numbers
     pre.whole_rows = False
     for unroll in (1, 3):
-        pre.unroll = unroll
+        setattr(pre, unrolled, unroll)
         pre.apply(r, z)
         assert np.array_equal(z.numpy(), fresh.numpy())
     # few worlds running: their tasks alone, launched for a tier of running worlds (1 or 2 of
@@ -278,10 +300,10 @@ def test_a_block_not_positive_definite_names_its_world(monkeypatch):
 
     real = factors.factor_programs
 
-    def failing(sparsity, values, ordering):
+    def failing(sparsity, values, ordering, panel_rows=0):
         if sparsity.size == 3 * 17 * 3 * 3 - 27:  # the 16-cell beam's free DOFs
             raise ArithmeticError("3")
-        return real(sparsity, values, ordering)
+        return real(sparsity, values, ordering, panel_rows)
 
     monkeypatch.setattr(factors, "factor_programs", failing)
     with pytest.raises(ws.SceneError, match="WorldFactors: world 1 \\(scene 'beam'\\): its system is not positive"):

@@ -154,12 +154,16 @@ def main(argv=None) -> int:
                     help="where each step's first solve starts (the Simulator's warm_start)")
     ap.add_argument("--factor-ordering", default=None, choices=list(ORDERINGS),
                     help="factors: their ordering (default warpsoft.linear.factors.ORDERING)")
+    ap.add_argument("--factor-layout", default=None, choices=["rows", "panels"],
+                    help="factors: how a level's work is cut (default warpsoft.linear.factors.LAYOUT)")
     ap.add_argument("--kernels", action="store_true",
                     help="CUDA: time each kernel and copy of one more step, uncaptured (kernels.md)")
     ap.add_argument("--out", default="out/batch")
     args = ap.parse_args(argv)
     if args.factor_ordering:
         factors.ORDERING = args.factor_ordering  # (WorldFactors reads it when made)
+    if args.factor_layout:
+        factors.LAYOUT = args.factor_layout
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
     if args.workers > 1 and not os.environ.get("WARPSOFT_MESH_CACHE"):
         ap.error("--workers meshes ahead into the mesh cache: set WARPSOFT_MESH_CACHE to a folder")

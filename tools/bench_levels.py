@@ -1,7 +1,9 @@
 """Cost of the sparse factors' ``P^-1`` in a batch of different Diamonds (CUDA): at full load, and
 over one solve's sequence of running worlds (those of the last warm-up step: at CG iteration
 ``i`` the worlds that took more than ``i``), each replayed from a graph, for each ``--tail``,
-``--loads``, ``--lanes``, ``--unroll``, ``--short-lanes``, ``--tail-lanes`` and ``--entries`` (and the
+``--loads``, ``--lanes``, ``--unroll``, ``--short-lanes``, ``--tail-lanes`` and ``--entries``, for each
+``--layout`` (rows or panels: the factors made again; ``--panel-rows``, ``--panel-spread``,
+``--panel-unroll``) (and the
 product's largest difference from the first's, with every world running and with the last
 iteration's).
 
@@ -82,6 +84,12 @@ def main(argv=None) -> int:
     ap.add_argument("--entries", nargs="*", default=None,
                     help="the factors' column and value types, index/value: int32/float32, uint16/float16, ... "
                          "(default: the preconditioner's)")
+    ap.add_argument("--layout", nargs="*", default=None, choices=["rows", "panels"],
+                    help="how a level's work is cut (default: the preconditioner's; another factorizes again)")
+    ap.add_argument("--panel-spread", nargs="*", default=None,
+                    help="panels: the columns a lane takes at full load and in the tail, comma-separated (4,1)")
+    ap.add_argument("--panel-rows", type=int, nargs="*", default=None, help="panels: rows a panel at most")
+    ap.add_argument("--panel-unroll", type=int, nargs="*", default=None, help="panels: columns a lane loads at a time")
     ap.add_argument("--tail", nargs="*", default=["default"],
                     help="the tiers of running worlds whose tasks launch alone: default (the preconditioner's), "
                          "none, or shares of the worlds, comma-separated (0.25,0.05)")
@@ -113,12 +121,33 @@ def main(argv=None) -> int:
     results, first = [], None
     kept = pre.whole_rows, pre.lanes, pre.tiers, pre.short_lanes, pre.tail_lanes
     tail_lanes = [[int(n) for n in t.split(",")] for t in args.tail_lanes] if args.tail_lanes else [pre.tail_lanes]
+    spreads = [tuple(float(n) for n in t.split(",")) for t in args.panel_spread] if args.panel_spread else [None]
     made = pre.solves, pre.index_dtype, pre.value_dtype
     entries = args.entries or [f"{made[1].__name__}/{made[2].__name__}"]
-    for entry, tail, loads, lanes, unroll, short, tail_short in [
-            (en, t, lo, la, u, sh, tl) for en in entries for t in args.tail for lo in args.loads
-            for la in args.lanes or [pre.lanes] for u in args.unroll for sh in args.short_lanes or [pre.short_lanes]
-            for tl in tail_lanes]:
+    variants = [(en, t, lo, la, u, sh, tl) for en in entries for t in args.tail for lo in args.loads
+                for la in args.lanes or [pre.lanes] for u in args.unroll for sh in args.short_lanes or [pre.short_lanes]
+                for tl in tail_lanes]
+    # (the rows' own options, lanes to tail lanes, do not apply to panels: their first values only)
+    variants = [((lay, pr), sp, pu, *v) for lay in args.layout or [pre.layout]
+                for pr in (args.panel_rows or [pre.panel_rows] if lay == "panels" else [pre.panel_rows])
+                for v in (variants if lay == "rows" else [u for u in variants if u[3:] == variants[0][3:]])
+                for sp in (spreads if lay == "panels" else [None])
+                for pu in (args.panel_unroll or [pre.panel_unroll] if lay == "panels" else [None])]
+    # (each layout's factors made at the same rotations)
+    made_as = None if args.layout or args.panel_rows else (pre.layout, pre.panel_rows)
+    for (layout, panel_rows), spread, panel_unroll, entry, tail, loads, lanes, unroll, short, tail_short in variants:
+        if (layout, panel_rows) != made_as:  # the factors made again, laid out
+            t1 = time.perf_counter()
+            retype(pre, made, *made[1:])
+            pre.layout, pre.panel_rows, pre.solves = layout, panel_rows, None
+            pre.refresh()
+            made, made_as = (pre.solves, pre.index_dtype, pre.value_dtype), (layout, panel_rows)
+            print(f"factors made again as {layout} in {time.perf_counter() - t1:.1f} s: levels {pre.levels}, "
+                  f"{pre.entries} values, {pre.memory_bytes / 2 ** 20:.0f} MiB", flush=True)
+        if spread is not None:
+            pre.panel_spread = spread
+        if panel_unroll is not None:
+            pre.panel_unroll = panel_unroll
         retype(pre, made, *(getattr(wp, name) for name in entry.split("/")))
         shares = factors.TAIL if tail == "default" else [] if tail == "none" else [float(f) for f in tail.split(",")]
         pre.tail(sorted({int(np.ceil(f * m.num_worlds)) for f in shares}))
@@ -139,10 +168,14 @@ def main(argv=None) -> int:
         for mask in masks:
             pre.watch(mask)
             sequence.append(replayed(lambda: pre.apply(r, z), device, 5, 3))
-        results.append({"entries": entry, "tail": pre.tiers, "loads": loads, "lanes": lanes, "unroll": unroll,
+        results.append({"layout": layout, "panel_rows": panel_rows, "panel_spread": spread,
+                        "panel_unroll": panel_unroll,
+                        "entries": entry, "tail": pre.tiers, "loads": loads, "lanes": lanes, "unroll": unroll,
                         "short_lanes": short, "tail_lanes": tail_short, "full_ms": full, "solve_ms": sum(sequence),
                         "sequence_ms": sequence, "max_difference": differs})
-        print(f"entries {entry}, tail {pre.tiers}, {loads}, {lanes} lanes, unroll {unroll}, short rows {short} lanes, "
+        panels = "" if layout == "rows" else f" of {panel_rows} rows, spread {pre.panel_spread}, unroll {panel_unroll}"
+        print(f"{layout}{panels}, entries {entry}, tail {pre.tiers}, {loads}, {lanes} lanes, unroll {unroll}, "
+              f"short rows {short} lanes, "
               f"in the tail {tail_short}: P^-1 {full:.3f} ms with every world; a "
               f"solve's {len(sequence)} {sum(sequence):.2f} ms [{' '.join(f'{t:.2f}' for t in sequence)}]; "
               f"differs by {differs[0]:.3g} (every world), {differs[1]:.3g} (the last iteration)", flush=True)

@@ -345,6 +345,176 @@ def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL, wh
     return factor_level_lanes
 
 
+def _lane_scatter(size: int, dtype, lanes: int):
+    """``(scatter_sum(v, lane), scatter_place(lane), kept)``: on CUDA, the sums of ``v`` (``(size,)``)
+    over the ``lanes`` neighbouring threads that share a task, spread over them (a reduce-scatter
+    by shuffles): at each of ``log2(lanes)`` rounds a thread keeps one half of what it holds and
+    sends the other to its partner, which keeps the other half, so that ``size`` numbers take about
+    ``size`` shuffles in all (:func:`_lane_sum`'s butterfly: ``size log2(lanes)``). ``scatter_sum``
+    returns the ``kept`` numbers a thread holds at the end; ``scatter_place`` gives, for the thread
+    ``lane``, the index in ``v`` of the first and how many of them are sums (the others pad).
+    Elsewhere (one thread a task) ``v`` itself, ``(0, size)``."""
+    key = ("lane_scatter", size, dtype, lanes)
+    if key in _kernels:
+        return _kernels[key]
+    if lanes & (lanes - 1) or not 1 <= lanes <= 32:
+        raise ValueError(f"level lanes must be a power of 2 up to 32, got {lanes}")
+    ctype = "float" if dtype == wp.float32 else "double"
+    rounds, n = [], size  # (partner offset, the half a thread keeps), from the widest
+    o = lanes // 2
+    while o > 0:
+        rounds.append((o, (n + 1) // 2))
+        n, o = (n + 1) // 2, o // 2
+    kept = n
+    code = [f"{ctype} s[{size}];", f"for (int i = 0; i < {size}; ++i) s[i] = v.c[i];", "#if defined(__CUDA_ARCH__)"]
+    n = size
+    for o, half in rounds:
+        code.append(f"{{ const bool up = (lane & {o}) != 0;")
+        for i in range(half):
+            hi = f"s[{half + i}]" if half + i < n else ("0.0f" if ctype == "float" else "0.0")
+            code.append(f"  {{ const {ctype} lo = s[{i}], hi = {hi};"
+                        f" s[{i}] = (up ? hi : lo) + __shfl_xor_sync(0xffffffffu, up ? lo : hi, {o}, {lanes}); }}")
+        code.append("}")
+        n = half
+    code += ["#endif", f"wp::vec_t<{kept}, {ctype}> out;", f"for (int i = 0; i < {kept}; ++i) out.c[i] = s[i];",
+             "return out;"]
+    place = ["int first = 0, count = " + str(size) + ";"]
+    for o, half in rounds:  # the kept half's place and its numbers that are sums (the upper half may pad)
+        place.append(f"if (lane & {o}) {{ first += {half}; count = count > {half} ? count - {half} : 0; }} "
+                     f"else {{ count = count < {half} ? count : {half}; }}")
+    place.append("return wp::vec_t<2, int>(first, count);")
+    full = wp.types.vector(length=size, dtype=dtype)
+
+    @wp.func_native("\n".join(code))
+    def scatter_sum(v: full, lane: int) -> wp.types.vector(length=kept, dtype=dtype): ...
+
+    @wp.func_native("\n".join(place))
+    def scatter_place(lane: int) -> wp.vec2i: ...
+
+    _kernels[key] = (scatter_sum, scatter_place, kept)
+    return _kernels[key]
+
+
+# a panel task: its first row (world-flat), rows, first value, first column, input and output columns
+panel_task = wp.types.vector(length=6, dtype=wp.int32)
+PANEL_UNROLL = 4  # columns a panel's lane loads at a time
+
+
+def panel_kernel(columns: int, dtype, rows: int, lanes: int, unroll: int = PANEL_UNROLL, whole: bool = False,
+                 compact: bool = False, entry: tuple | None = None):
+    """``factor_panel(tasks, first, col, val, node_world, world_row, scal, inp, out, count, worlds,
+    spans, per)``: one level of panels (``warpsoft/linear/supernodal.py``'s :class:`Panels`), for
+    ``k = columns`` right-hand sides in precision ``dtype``, at most ``rows`` rows a panel,
+    ``lanes`` neighbouring threads a panel (a power of 2 up to 32; a launch of ``tasks x lanes``
+    threads, or ``running x per x lanes`` with ``compact``: :func:`_task_at`, rounded up to whole
+    warps). Task ``(row, h, v0, c0, ni, no)`` writes ``out[row + i, c] = sum_q val[v0 + i (ni +
+    no) + q] src_q[base + col[c0 + q], c]`` for its ``h`` rows, ``src_q`` the input for ``q <
+    ni``, the output after. Lane ``l`` takes the columns ``q = l, l + lanes, ...``: it reads each
+    column's operand row once for the panel's rows (a thread a row reads it once a row), ``unroll``
+    columns at a time (their loads issued together, then summed in order), and warp shuffles add
+    the lanes' ``rows x k`` sums, each lane then writing a share (:func:`_lane_scatter`).
+    ``whole``, ``compact`` and ``entry``: as :func:`level_kernel`'s."""
+    index, value = (wp.int32, dtype) if entry is None else entry
+    key = ("panel", columns, dtype, rows, lanes, unroll, whole, compact, index, value)
+    if key in _kernels:
+        return _kernels[key]
+    K, H, L, U = columns, rows, lanes, unroll
+    sums = wp.types.vector(length=K, dtype=dtype)
+    block = wp.types.vector(length=H * K, dtype=dtype)  # a panel's sums, row by row
+    loaded = wp.types.vector(length=U * K, dtype=dtype)
+    running, _ = _row_funcs(columns, dtype, 1, whole, (index, value))
+    scatter_sum, scatter_place, KEPT = _lane_scatter(H * K, dtype, lanes)
+    task_at = _task_at(compact)
+    load_row = _row_load(K, dtype)
+
+    @wp.func
+    def operand(src: wp.array2d(dtype=dtype), j: int) -> sums:
+        """Row ``j`` of ``src``, ``(k,)``: read whole or indexed (:func:`_row_funcs`)."""
+        if wp.static(whole):
+            return load_row(src, j)
+        x = sums()
+        for c in range(K):
+            x[c] = src[j, c]
+        return x
+
+    @wp.func
+    def columns_of(acc: block, height: int, v0: int, stride: int, c0: int, q0: int, q1: int, lane: int,
+                   base: int, col: wp.array(dtype=index), val: wp.array(dtype=value),
+                   src: wp.array2d(dtype=dtype)) -> block:
+        """``acc`` plus the panel's columns ``q0 + lane, q0 + lane + lanes, ... < q1`` read from ``src``."""
+        total = acc + block()
+        q = wp.int32(q0 + lane)
+        while q + (U - 1) * L < q1:  # U whole columns left
+            xs = loaded()
+            for u in range(U):
+                x = operand(src, base + wp.int32(col[c0 + q + u * L]))
+                for c in range(K):
+                    xs[u * K + c] = x[c]
+            for u in range(U):
+                for i in range(H):
+                    if i < height:
+                        v = dtype(val[v0 + i * stride + q + u * L])
+                        for c in range(K):
+                            total[i * K + c] = total[i * K + c] + v * xs[u * K + c]
+            q = q + U * L
+        while q < q1:
+            x = operand(src, base + wp.int32(col[c0 + q]))
+            for i in range(H):
+                if i < height:
+                    v = dtype(val[v0 + i * stride + q])
+                    for c in range(K):
+                        total[i * K + c] = total[i * K + c] + v * x[c]
+            q = q + L
+        return total
+
+    @wp.kernel(module="unique")
+    def factor_panel(tasks: wp.array(dtype=panel_task), first: int, col: wp.array(dtype=index),
+                     val: wp.array(dtype=value), node_world: wp.array(dtype=wp.int32),
+                     world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
+                     inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype), count: wp.array(dtype=wp.int32),
+                     worlds: wp.array(dtype=wp.int32), spans: wp.array(dtype=wp.vec2i), per: int):
+        tid = wp.tid()
+        lane = tid % L
+        at = task_at(tid // L, first, count, worlds, spans, per)
+        row = wp.int32(-1)  # -1: nothing to write (no task, or a converged world's)
+        height = wp.int32(0)
+        acc = block()
+        if at >= 0:
+            t = tasks[at]
+            w = node_world[t[0] // 3]
+            live = True
+            if wp.static(not compact):
+                live = running(scal, w)  # (the same for the task's lanes)
+            if live:
+                row = t[0]
+                height = t[1]
+                base = world_row[w]
+                stride = t[4] + t[5]
+                # the diagonal block's inverse on the input, then the rows solved at earlier levels
+                acc = columns_of(acc, height, t[2], stride, t[3], 0, t[4], lane, base, col, val, inp)
+                acc = columns_of(acc, height, t[2], stride, t[3], t[4], stride, lane, base, col, val, out)
+        # the lanes' sums spread over them: each writes those it holds (sum m is the panel's number
+        # first + m, row (first + m) // k)
+        if wp.static(L == 1):  # (a thread holds them all)
+            if row >= 0:
+                for i in range(H):
+                    if i < height:
+                        for c in range(K):
+                            out[row + i, c] = acc[i * K + c]
+        else:
+            total = scatter_sum(acc, lane)
+            place = scatter_place(lane)
+            if row >= 0:
+                for m in range(wp.static(KEPT)):  # (unrolled: the sums stay in registers)
+                    if m < place[1]:
+                        i = (place[0] + m) // K
+                        if i < height:
+                            out[row + i, place[0] + m - i * K] = total[m]
+
+    _kernels[key] = factor_panel
+    return factor_panel
+
+
 def running_worlds(columns: int):
     """``running_worlds(scal, count, worlds)``, a thread per world: a world with a column not
     converged appends itself to ``worlds`` (``count[0]`` of them, in no set order: each task's

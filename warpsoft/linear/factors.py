@@ -14,6 +14,10 @@ sample of 128 of 1024 different Diamonds, against 30-53 with CHOLMOD's own order
 1 % more entries (H200, those 1024: P^-1 9.18 -> 7.20 ms, a step's graphs 154.9 -> 129.6 ms).
 In the levels of short rows (a thread a row) the entries lie in slices of 32 rows, interleaved,
 so that a warp reads side by side (P^-1 7.22 -> 6.70 ms for 3 % more entries, in padding).
+The default layout is now panels (:meth:`~warpsoft.linear.supernodal.Supernodal.panels`): a task
+is up to :data:`PANEL_ROWS` rows of a supernode that read the same columns, listed once and read
+once for them, a few lanes a panel sharing its columns (1024 Diamonds on the H200: P^-1 4.90 ->
+3.45 ms, a step 70.9 -> 60.5 ms; docs/performance.md); ``layout="rows"`` keeps a task a row.
 
 So ``P^-1 = Q blockdiag(s_w^-1 P_b^T L_b^-T L_b^-1 P_b) Q^T``: the same preconditioner as the
 dense inverse (the rest system's exact inverse, turned by the node rotations), at a fraction of
@@ -40,7 +44,7 @@ from ..launch import launch
 from .assembly import ORDERINGS, CholmodFactor, Pattern, Sparsity
 from .blocks import WorldGroups, _dense_entries
 from .operator import SystemOperator
-from .supernodal import Program, Supernodal, sliced
+from .supernodal import Panels, Program, Supernodal, sliced
 
 LANES = 32  # threads a row in the levels of long rows, on CUDA
 LANES_FROM = 128.0  # the mean entries a row from which a level takes them (docs/performance.md)
@@ -60,18 +64,27 @@ SHORT_LANES = 2
 # an entry's column takes 16 bits when every factor has at most this many places (the Diamond's
 # 3048-5157): 6 bytes an entry instead of 8 (H200, 1024 Diamonds: P^-1 5.14 -> 4.91 ms)
 NARROW_PLACES = 2 ** 16
+# how a level's work is cut: "rows" (a task a row, each row listing its columns) or "panels" (a task
+# up to PANEL_ROWS rows of a supernode that read the same columns, listed once and read once for them)
+LAYOUT = "panels"
+PANEL_ROWS = 4
+# the columns a panel's lane takes, on CUDA (its lanes: a power of 2 up to 32), at full load and in
+# the tail (where threads are spare)
+PANEL_SPREAD = (8.0, 1.0)
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
 
 
-def factor_programs(sparsity: Sparsity, values: np.ndarray,
-                    ordering: str) -> tuple[np.ndarray, tuple[Program, Program]]:
+def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str,
+                    panel_rows: int = 0) -> tuple[np.ndarray, tuple[Program, Program] | tuple[Panels, Panels]]:
     """One block: CHOLMOD's factor of the system ``values`` (its lower triangle's, on
-    ``sparsity``) in ``ordering``, read out as the forward and backward level programs; and the
-    factor's ``order`` (the DOF at each of its places). A function of its arguments alone, so that
-    worker processes can run it; raises ArithmeticError when the system is not positive definite."""
+    ``sparsity``) in ``ordering``, read out as the forward and backward level programs (a task a
+    row), or with ``panel_rows`` as panels of that many rows; and the factor's ``order`` (the DOF
+    at each of its places). A function of its arguments alone, so that worker processes can run
+    it; raises ArithmeticError when the system is not positive definite."""
     L, order = CholmodFactor(sparsity, ordering=ordering).lower(values)
-    return order, Supernodal(L).programs(L)
+    analysis = Supernodal(L)
+    return order, analysis.panels(L, panel_rows) if panel_rows else analysis.programs(L)
 
 
 class WorldFactors(WorldGroups):
@@ -85,6 +98,7 @@ class WorldFactors(WorldGroups):
         ordering: the factors' ordering, :class:`~warpsoft.linear.assembly.CholmodFactor`'s
             (default :data:`ORDERING`: a level's launch has a floor however few worlds still
             run, so a shallow tree pays).
+        layout: "rows" or "panels", how a level's work is cut (default :data:`LAYOUT`).
 
     Attributes: ``blocks`` (distinct factors), ``block_of`` ``(worlds,)``, ``levels`` (the forward
     and backward solves' launches), ``entries`` (the programs' numbers, all blocks), ``refreshes``,
@@ -98,19 +112,25 @@ class WorldFactors(WorldGroups):
     from :data:`TAIL` on CUDA: :meth:`tail`), ``short_lanes`` and ``tail_lanes`` (the threads a
     row of the sliced levels takes with every world's tasks, :data:`SHORT_LANES`, and at each tier,
     :data:`TAIL_LANES`), ``index_dtype`` (the entries' columns: ``uint16`` when every factor has at
-    most :data:`NARROW_PLACES` places, else ``int32``).
+    most :data:`NARROW_PLACES` places, else ``int32``); with ``layout="panels"``: ``panel_rows``
+    (:data:`PANEL_ROWS`), ``panel_spread`` (:data:`PANEL_SPREAD`) and ``panel_unroll`` (the columns
+    a lane loads at a time).
     """
 
     capturable = True
 
     def __init__(self, operator: SystemOperator, columns: int, precision: str = "float32",
                  refresh_ratio: float = 2.0, refresh_floor: int = 40, share: bool = True,
-                 share_tolerance: float = 1e-10, ordering: str | None = None):
+                 share_tolerance: float = 1e-10, ordering: str | None = None, layout: str | None = None):
         if precision not in ("float64", "float32"):
             raise ValueError(f"WorldFactors: precision must be 'float64' or 'float32', got {precision!r}")
         self.ordering = ORDERING if ordering is None else ordering
         if self.ordering not in ORDERINGS:
             raise ValueError(f"WorldFactors: ordering must be one of {ORDERINGS}, got {ordering!r}")
+        self.layout = LAYOUT if layout is None else layout
+        if self.layout not in ("rows", "panels"):
+            raise ValueError(f"WorldFactors: layout must be 'rows' or 'panels', got {layout!r}")
+        self.panel_rows, self.panel_spread, self.panel_unroll = PANEL_ROWS, PANEL_SPREAD, kernels.PANEL_UNROLL
         super().__init__(operator, columns, refresh_ratio, refresh_floor, share, share_tolerance)
         m, d = operator.model, operator.model.device
         self.dtype = wp.float64 if precision == "float64" else wp.float32
@@ -200,7 +220,8 @@ class WorldFactors(WorldGroups):
         first = self.block_of is None
         if first:
             self._group(blocks)
-        jobs = ((self.patterns[self.mesh_of[w]].sparsity(), self._system(blocks, w), self.ordering)
+        rows = self.panel_rows if self.layout == "panels" else 0
+        jobs = ((self.patterns[self.mesh_of[w]].sparsity(), self._system(blocks, w), self.ordering, rows)
                 for w in self.first_world)
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
         workers = min(self.workers or cores, len(self.first_world))
@@ -256,6 +277,9 @@ class WorldFactors(WorldGroups):
                 dof = self.patterns[self.mesh_of[w]].free[self.orders[b]]  # the world's DOF at each place
                 place[start + dof] = start + np.arange(len(dof))
             self.place = wp.array(place, dtype=wp.int32, device=d)
+        if self.layout == "panels":
+            self._lay_out_panels(programs)
+            return
         worlds = np.bincount(self.block_of, minlength=len(programs))
         solves = []
         for direction in range(2):
@@ -306,6 +330,50 @@ class WorldFactors(WorldGroups):
             self.solves = solves
             self.inv_scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
 
+    def _lay_out_panels(self, programs: list) -> None:
+        """:meth:`_lay_out` for panels: each block's values and columns once, each world's panels
+        (their first rows at its places), sorted by level; per level, its panels' mean columns."""
+        m, d = self.op.model, self.op.model.device
+        npd = np.float64 if self.dtype == wp.float64 else np.float32
+        solves = []
+        for direction in range(2):
+            progs = [p[direction] for p in programs]
+            values = np.concatenate([[0], np.cumsum([len(p.val) for p in progs])])
+            val = np.concatenate([p.val for p in progs]).astype(npd)
+            if self.solves is not None:
+                self.solves[direction][2].assign(val)
+                continue
+            if values[-1] >= 2 ** 31:
+                raise ValueError(f"WorldFactors: {values[-1]} values pass the 2^31 a Warp index holds; "
+                                 "step fewer designs at a time")
+            cols = np.concatenate([[0], np.cumsum([len(p.col) for p in progs])])
+            col = np.concatenate([p.col for p in progs]).astype(wp.dtype_to_numpy(self.index_dtype))
+            depth = max(p.levels for p in progs)
+            tasks, levels = [], []
+            per_world = np.zeros((depth, m.num_worlds), dtype=np.int64)  # each level's panels of each world
+            for w in range(m.num_worlds):
+                b = int(self.block_of[w])
+                p = progs[b]
+                tasks.append(np.column_stack([3 * int(m.world_node_start[w]) + p.row, p.height,
+                                              p.val_start + values[b], p.col_start + cols[b], p.reads]))
+                levels.append(p.level)
+                per_world[:, w] = np.bincount(p.level, minlength=depth)
+            tasks, levels = np.concatenate(tasks), np.concatenate(levels)
+            order = np.argsort(levels, kind="stable")  # by level, then world, then panel
+            count = np.bincount(levels, minlength=depth)
+            firsts = np.concatenate([[0], np.cumsum(count)[:-1]])
+            reads = np.bincount(levels, weights=tasks[:, 4] + tasks[:, 5], minlength=depth) / np.maximum(count, 1)
+            spans = np.stack([np.cumsum(per_world, axis=1) - per_world, per_world], axis=-1)[count > 0]
+            solves.append((wp.array(tasks[order].astype(np.int32), dtype=kernels.panel_task, device=d),
+                           wp.array(col, dtype=self.index_dtype, device=d),
+                           wp.array(val, dtype=self.value_dtype, device=d),
+                           [(int(f), int(c), float(r), int(most)) for f, c, r, most
+                            in zip(firsts, count, reads, per_world.max(axis=1), strict=True) if c],
+                           wp.array(spans.astype(np.int32), dtype=wp.vec2i, device=d)))
+        if self.solves is None:
+            self.solves = solves
+            self.inv_scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
+
     def apply(self, r: wp.array, z: wp.array) -> None:
         """``z = Q blockdiag(s_w^-1 A_b^-1) Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns``;
         fixed DOFs 0."""
@@ -344,6 +412,9 @@ class WorldFactors(WorldGroups):
         tasks of a world). A long row takes ``lanes`` threads, a short one ``_short_lanes(tier)``."""
         m, d = self.op.model, self.op.model.device
         compact = tier > 0
+        if self.layout == "panels":
+            self._panel_levels(k, tier)
+            return
         short = self._short_lanes(tier)
         entry = (self.index_dtype, self.value_dtype)
         if short == 1:
@@ -363,3 +434,30 @@ class WorldFactors(WorldGroups):
                 if per > 1:  # whole warps: each thread reaches the shuffles
                     threads = -(-threads * per // 32) * 32
                 launch(lanes if long else level, threads, inputs=inputs, outputs=[out, *tail], device=d)
+
+    def panel_lanes(self, reads: float, tier: int) -> int:
+        """Threads a panel takes in a level whose panels read ``reads`` columns on average, at
+        ``tier`` (0: every world's tasks): about ``panel_spread`` columns a lane, a power of 2 up
+        to 32, on CUDA; one on the CPU."""
+        if not self.op.model.device.is_cuda:
+            return 1
+        spread = self.panel_spread[0 if tier == 0 else 1]
+        return int(min(32, 2 ** max(0, math.ceil(math.log2(max(reads / spread, 1.0))))))
+
+    def _panel_levels(self, k: int, tier: int) -> None:
+        """:meth:`_levels` for panels: a launch a level, ``panel_lanes`` threads a panel."""
+        m, d = self.op.model, self.op.model.device
+        compact = tier > 0
+        entry = (self.index_dtype, self.value_dtype)
+        for (tasks, col, val, levels, spans), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x),
+                                                              strict=True):
+            for j, (first, count, reads, most) in enumerate(levels):
+                lanes = self.panel_lanes(reads, tier)
+                kernel = kernels.panel_kernel(k, self.dtype, self.panel_rows, lanes, self.panel_unroll,
+                                              self.whole_rows, compact, entry)
+                threads = (tier * most if compact else count) * lanes
+                if lanes > 1:  # whole warps: each thread reaches the shuffles
+                    threads = -(-threads // 32) * 32
+                launch(kernel, threads, inputs=[tasks, first, col, val, m.node_world, self.world_row, self._done, inp],
+                       outputs=[out, self.running, self.running_list, spans[j], most if compact else count],
+                       device=d)
