@@ -248,6 +248,8 @@ def test_bad_input_is_named():
         WorldFactors(sim.operator, 1, "half")
     with pytest.raises(ValueError, match="WorldFactors: ordering must be one of .*, got 'metis'"):
         WorldFactors(sim.operator, 1, ordering="metis")
+    with pytest.raises(ValueError, match="WorldFactors: layout must be 'rows' or 'panels', got 'columns'"):
+        WorldFactors(sim.operator, 1, layout="columns")
     with pytest.raises(ValueError, match="CholmodFactor: ordering must be one of .*, got 'amd'"):
         CholmodFactor(sim.solver.assembly, ordering="amd")
     with pytest.raises(ValueError, match="auto, host, dense, blocks, factors, got 'factor'"):
