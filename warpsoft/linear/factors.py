@@ -87,6 +87,20 @@ def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str,
     return order, analysis.panels(L, panel_rows) if panel_rows else analysis.programs(L)
 
 
+def _by_level(levels: np.ndarray, per_world: np.ndarray, kind: list, device) -> tuple:
+    """Every world's tasks (their ``levels``, world after world; ``per_world`` ``(depth, worlds)``
+    each level's tasks of each world) in launch order: ``order`` (by level, then world, then its
+    own order), per level with tasks ``(first, count, kind[level], most of a world)``, and each
+    world's ``(offset, count)`` there on ``device`` (the tail's launches: ``kernels._task_at``)."""
+    order = np.argsort(levels, kind="stable")
+    count = np.bincount(levels, minlength=per_world.shape[0])
+    firsts = np.concatenate([[0], np.cumsum(count)[:-1]])
+    spans = np.stack([np.cumsum(per_world, axis=1) - per_world, per_world], axis=-1)[count > 0]
+    listed = [(int(f), int(c), k, int(most)) for f, c, k, most in zip(firsts, count, kind, per_world.max(axis=1),
+                                                                       strict=True) if c]
+    return order, listed, wp.array(spans.astype(np.int32), dtype=wp.vec2i, device=device)
+
+
 class WorldFactors(WorldGroups):
     """Args:
         operator: the system (rotations, scales, model).
@@ -315,20 +329,13 @@ class WorldFactors(WorldGroups):
                 levels.append(s.level)
                 per_world[:, w] = np.bincount(s.level, minlength=depth)
             tasks, levels = np.concatenate(tasks), np.concatenate(levels)
-            order = np.argsort(levels, kind="stable")  # by level, then world, then slot
-            count = np.bincount(levels, minlength=depth)
-            firsts = np.concatenate([[0], np.cumsum(count)[:-1]])
             if tasks.max() >= 2 ** 31:
                 raise ValueError(f"WorldFactors: {tasks.max()} entries pass the 2^31 a Warp index holds; "
                                  "step fewer designs at a time")
-            # each world's tasks in a level: from its offset there (the worlds in order), how many
-            spans = np.stack([np.cumsum(per_world, axis=1) - per_world, per_world], axis=-1)[count > 0]
+            order, level_list, spans = _by_level(levels, per_world, [bool(lg) for lg in long], d)
             solves.append((wp.array(tasks[order].astype(np.int32), dtype=wp.vec4i, device=d),
                            wp.array(col, dtype=self.index_dtype, device=d),
-                           wp.array(val, dtype=self.value_dtype, device=d),
-                           [(int(f), int(c), bool(lg), int(most)) for f, c, lg, most
-                            in zip(firsts, count, long, per_world.max(axis=1), strict=True) if c],
-                           wp.array(spans.astype(np.int32), dtype=wp.vec2i, device=d)))
+                           wp.array(val, dtype=self.value_dtype, device=d), level_list, spans))
         if self.solves is None:
             self.solves = solves
             self.inv_scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
@@ -362,17 +369,12 @@ class WorldFactors(WorldGroups):
                 levels.append(p.level)
                 per_world[:, w] = np.bincount(p.level, minlength=depth)
             tasks, levels = np.concatenate(tasks), np.concatenate(levels)
-            order = np.argsort(levels, kind="stable")  # by level, then world, then panel
-            count = np.bincount(levels, minlength=depth)
-            firsts = np.concatenate([[0], np.cumsum(count)[:-1]])
-            reads = np.bincount(levels, weights=tasks[:, 4] + tasks[:, 5], minlength=depth) / np.maximum(count, 1)
-            spans = np.stack([np.cumsum(per_world, axis=1) - per_world, per_world], axis=-1)[count > 0]
+            count = np.maximum(np.bincount(levels, minlength=depth), 1)
+            reads = np.bincount(levels, weights=tasks[:, 4] + tasks[:, 5], minlength=depth) / count
+            order, level_list, spans = _by_level(levels, per_world, [float(r) for r in reads], d)
             solves.append((wp.array(tasks[order].astype(np.int32), dtype=kernels.panel_task, device=d),
                            wp.array(col, dtype=self.index_dtype, device=d),
-                           wp.array(val, dtype=self.value_dtype, device=d),
-                           [(int(f), int(c), float(r), int(most)) for f, c, r, most
-                            in zip(firsts, count, reads, per_world.max(axis=1), strict=True) if c],
-                           wp.array(spans.astype(np.int32), dtype=wp.vec2i, device=d)))
+                           wp.array(val, dtype=self.value_dtype, device=d), level_list, spans))
         if self.solves is None:
             self.solves = solves
             self.inv_scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
