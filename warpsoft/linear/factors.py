@@ -378,6 +378,8 @@ class WorldFactors(WorldGroups):
         if self.solves is None:
             self.solves = solves
             self.inv_scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)
+            # the kernels' rows a panel: the programs' tallest (panel_rows may change after)
+            self.panel_height = max(int(p[k].height.max(initial=1)) for p in programs for k in range(2))
 
     def apply(self, r: wp.array, z: wp.array) -> None:
         """``z = Q blockdiag(s_w^-1 A_b^-1) Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns``;
@@ -458,7 +460,7 @@ class WorldFactors(WorldGroups):
                                                               strict=True):
             for j, (first, count, reads, most) in enumerate(levels):
                 lanes = self.panel_lanes(reads, tier)
-                kernel = kernels.panel_kernel(k, self.dtype, self.panel_rows, lanes, self.panel_unroll,
+                kernel = kernels.panel_kernel(k, self.dtype, self.panel_height, lanes, self.panel_unroll,
                                               self.whole_rows, compact, entry)
                 threads = (tier * most if compact else count) * lanes
                 if lanes > 1:  # whole warps: each thread reaches the shuffles
