@@ -261,6 +261,12 @@ def level_kernel(columns: int, dtype, step: int = 1, unroll: int = UNROLL, whole
     return factor_level
 
 
+def _check_lanes(lanes: int) -> None:
+    """The threads that share a task add by shuffles within a warp: a power of 2 up to 32."""
+    if lanes & (lanes - 1) or not 1 <= lanes <= 32:
+        raise ValueError(f"level lanes must be a power of 2 up to 32, got {lanes}")
+
+
 def _lane_sum(columns: int, dtype, lanes: int):
     """``lane_sum(v)``: on CUDA the sum of ``v`` (``(k,)``) over the ``lanes`` neighbouring threads
     of a warp that share a task (``lanes`` a power of 2 up to 32, the task's threads aligned on
@@ -269,8 +275,7 @@ def _lane_sum(columns: int, dtype, lanes: int):
     key = ("lane_sum", columns, dtype, lanes)
     if key in _kernels:
         return _kernels[key]
-    if lanes & (lanes - 1) or not 1 <= lanes <= 32:
-        raise ValueError(f"level lanes must be a power of 2 up to 32, got {lanes}")
+    _check_lanes(lanes)
     ctype = "float" if dtype == wp.float32 else "double"
     snippet = "\n".join([
         f"wp::vec_t<{columns}, {ctype}> s = v;",
@@ -357,8 +362,7 @@ def _lane_scatter(size: int, dtype, lanes: int):
     key = ("lane_scatter", size, dtype, lanes)
     if key in _kernels:
         return _kernels[key]
-    if lanes & (lanes - 1) or not 1 <= lanes <= 32:
-        raise ValueError(f"level lanes must be a power of 2 up to 32, got {lanes}")
+    _check_lanes(lanes)
     ctype = "float" if dtype == wp.float32 else "double"
     rounds, n = [], size  # (partner offset, the half a thread keeps), from the widest
     o = lanes // 2
