@@ -211,104 +211,112 @@ def block_direction_kernel(columns: int):
 
 
 _small = {}
+# a block's k x k loops unroll up to this many columns (then its small matrices live in registers);
+# larger blocks loop (compile time grows as k^3 unrolled)
+SMALL_UNROLL = 8
 
 
 def small_kernels(columns: int):
-    """``(block_alpha, block_scalars)`` for ``k <= columns`` columns: a thread per world, whose
+    """``(block_alpha, block_scalars)`` for ``k = columns`` columns: a thread per world, whose
     ``k x k`` matrices (the Gram matrices, ``alpha``, ``beta`` and the Cholesky factor) are local
-    arrays of ``columns x columns`` (of :data:`MAX_COLUMNS` each, the two kernels took 146 and
-    178 us a launch for 1024 Diamonds' 5 columns on the H200, against 50 and 73). Cached per
-    ``columns``."""
+    matrices of ``k x k``, every loop over ``k`` (unrolled up to :data:`SMALL_UNROLL` columns, so
+    that each index is a constant and the matrices stay in registers; a loop bounded by the
+    column at hand runs over all ``k`` and tests it). For 1024 Diamonds' 5 columns on the H200,
+    ``block_alpha`` and ``block_scalars`` took 146 and 178 us a launch with matrices of
+    :data:`MAX_COLUMNS`, 48 and 70 with ``k x k`` ones and loops bounded at run time (the matrices
+    in local memory), 24 and 47 unrolled. Cached per ``columns``."""
     if columns in _small:
         return _small[columns]
-    Small = wp.types.matrix(shape=(columns, columns), dtype=wp.float64)  # a world's k x k, local
-    Diagonal = wp.types.vector(length=columns, dtype=wp.float64)
-    Flags = wp.types.vector(length=columns, dtype=wp.int32)
+    K = columns
+    Small = wp.types.matrix(shape=(K, K), dtype=wp.float64)  # a world's k x k, local
+    Diagonal = wp.types.vector(length=K, dtype=wp.float64)
+    Flags = wp.types.vector(length=K, dtype=wp.int32)
 
     @wp.func
-    def load(g: wp.array4d(dtype=wp.float64), w: int, slot: int, k: int) -> Small:
+    def load(g: wp.array4d(dtype=wp.float64), w: int, slot: int) -> Small:
         """``g[w, slot]`` (its upper half filled) as a symmetric local matrix."""
         m = Small()
-        for a in range(k):
-            for b in range(a, k):
-                v = g[w, slot, a, b]
-                m[a, b] = v
-                m[b, a] = v
+        for a in range(K):
+            for b in range(K):
+                if b >= a:
+                    v = g[w, slot, a, b]
+                    m[a, b] = v
+                    m[b, a] = v
         return m
 
     @wp.func
-    def solve_small(g: Small, rhs: Small, k: int, dependent: wp.float64) -> Small:
-        """``G^-1 rhs`` for the symmetric positive semi-definite ``G = g`` (``k x k`` of local
-        matrices, in registers or local memory: this thread's alone). Cholesky of
-        ``D^-1/2 G D^-1/2`` (``D`` its diagonal); a pivot below ``dependent``, or a zero diagonal
-        (a column left out), drops its row and column, and that row of the solution is 0 (its
-        direction is not taken). One direction alone is CG's own quotient."""
+    def solve_small(g: Small, rhs: Small, dependent: wp.float64) -> Small:
+        """``G^-1 rhs`` for the symmetric positive semi-definite ``G = g`` (``k x k`` local
+        matrices, this thread's alone). Cholesky of ``D^-1/2 G D^-1/2`` (``D`` its diagonal); a
+        pivot below ``dependent``, or a zero diagonal (a column left out), drops its row and
+        column, and that row of the solution is 0 (its direction is not taken). One direction
+        alone is CG's own quotient."""
         out = Small()
         d = Diagonal()
         keep = Flags()
         kept = wp.int32(0)
-        only = wp.int32(0)
-        for a in range(k):
+        for a in range(K):
             if g[a, a] > wp.float64(0.0):
                 keep[a] = 1
                 d[a] = wp.sqrt(g[a, a])
                 kept += 1
-                only = a
         if kept == 1:
-            for col in range(k):
-                out[only, col] = rhs[only, col] / g[only, only]
+            for a in range(K):
+                if keep[a] != 0:
+                    for col in range(K):
+                        out[a, col] = rhs[a, col] / g[a, a]
         if kept <= 1:
             return out
         lw = Small()
-        for j in range(k):  # the scaled factor, column by column (lower triangle)
-            if keep[j] == 0:
-                continue
-            for i in range(j, k):
-                if keep[i] == 0:
-                    continue
-                s = g[i, j] / (d[j] * d[i])
-                for m in range(j):
-                    if keep[m] != 0:
-                        s -= lw[i, m] * lw[j, m]
-                if i == j:
-                    if s <= dependent:
-                        keep[j] = 0
-                        break
-                    lw[j, j] = wp.sqrt(s)
+        for j in range(K):  # the scaled factor, column by column (lower triangle)
+            if keep[j] != 0:
+                s = g[j, j] / (d[j] * d[j])
+                for m in range(K):
+                    if m < j and keep[m] != 0:
+                        s -= lw[j, m] * lw[j, m]
+                if s <= dependent:
+                    keep[j] = 0
                 else:
-                    lw[i, j] = s / lw[j, j]
-        for col in range(k):  # each right-hand side: forward and back substitution, scaled
-            for i in range(k):
-                if keep[i] == 0:
-                    continue
-                s = rhs[i, col] / d[i]
-                for m in range(i):
-                    if keep[m] != 0:
-                        s -= lw[i, m] * out[m, col]
-                out[i, col] = s / lw[i, i]
-            for ii in range(k):
-                i = k - 1 - ii
-                if keep[i] == 0:
-                    continue
-                s = out[i, col]
-                for m in range(i + 1, k):
-                    if keep[m] != 0:
-                        s -= lw[m, i] * out[m, col]
-                out[i, col] = s / lw[i, i]
-            for i in range(k):
+                    lw[j, j] = wp.sqrt(s)
+                    for i in range(K):
+                        if i > j and keep[i] != 0:
+                            t = g[i, j] / (d[j] * d[i])
+                            for m in range(K):
+                                if m < j and keep[m] != 0:
+                                    t -= lw[i, m] * lw[j, m]
+                            lw[i, j] = t / lw[j, j]
+        for col in range(K):  # each right-hand side: forward and back substitution, scaled
+            for i in range(K):
+                if keep[i] != 0:
+                    s = rhs[i, col] / d[i]
+                    for m in range(K):
+                        if m < i and keep[m] != 0:
+                            s -= lw[i, m] * out[m, col]
+                    out[i, col] = s / lw[i, i]
+            for ii in range(K):
+                i = K - 1 - ii
+                if keep[i] != 0:
+                    s = out[i, col]
+                    for m in range(K):
+                        if m > i and keep[m] != 0:
+                            s -= lw[m, i] * out[m, col]
+                    out[i, col] = s / lw[i, i]
+            for i in range(K):
                 if keep[i] != 0:
                     out[i, col] = out[i, col] / d[i]
         return out
 
     @wp.func
-    def store(m: Small, coef: wp.array4d(dtype=wp.float64), w: int, slot: int, k: int):
-        """``coef[w, slot] = m`` (``k x k``)."""
-        for a in range(k):
-            for b in range(k):
+    def store(m: Small, coef: wp.array4d(dtype=wp.float64), w: int, slot: int):
+        """``coef[w, slot] = m``."""
+        for a in range(K):
+            for b in range(K):
                 coef[w, slot, a, b] = m[a, b]
 
-    @wp.kernel(module="unique")
-    def block_alpha(g: wp.array4d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), k: int, dependent: wp.float64,
+    options = {"max_unroll": SMALL_UNROLL}
+
+    @wp.kernel(module="unique", module_options=options, enable_backward=False)
+    def block_alpha(g: wp.array4d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), dependent: wp.float64,
                     coef: wp.array4d(dtype=wp.float64), active: wp.array(dtype=wp.int32)):
         """One thread per world: ``alpha = G_PAP^-1 G_RZ``; clears the loop flag, which
         :func:`block_scalars` sets again while a world still has to run."""
@@ -317,11 +325,11 @@ def small_kernels(columns: int):
             active[0] = 0
         if not running(wdone, w):
             return
-        store(solve_small(load(g, w, G_PAP, k), load(g, w, G_RZ, k), k, dependent), coef, w, ALPHA, k)
+        store(solve_small(load(g, w, G_PAP), load(g, w, G_RZ), dependent), coef, w, ALPHA)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=options, enable_backward=False)
     def block_scalars(scal: wp.array3d(dtype=wp.float64), g: wp.array4d(dtype=wp.float64), tolerance: wp.float64,
-                      max_iterations: int, advance: int, hold: wp.array(dtype=wp.float64), k: int,
+                      max_iterations: int, advance: int, hold: wp.array(dtype=wp.float64),
                       dependent: wp.float64, wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64),
                       info: wp.array(dtype=wp.int32), active: wp.array(dtype=wp.int32)):
         """One thread per world, after an iteration (``advance = 1``: ``beta = G_RZ^-1 G_RZ_new``, roll
@@ -337,21 +345,21 @@ def small_kernels(columns: int):
             if hold.shape[0] > 0:
                 if hold[w] == wp.float64(0.0):
                     wdone[w] = 1
-                    for c in range(k):
+                    for c in range(K):
                         scal[c, w, DONE] = wp.float64(1.0)
                         scal[c, w, R2_LAST] = wp.float64(0.0)
                     return
-            for c in range(k):
+            for c in range(K):
                 if not live(scal, c, w):
                     scal[c, w, DONE] = wp.float64(1.0)  # (a column left out: the products skip it)
         if wdone[w] != 0:
             return
         finite = wp.int32(1)
         if advance != 0:
-            beta = solve_small(load(g, w, G_RZ, k), load(g, w, G_RZ_NEW, k), k, dependent)
-            store(beta, coef, w, BETA, k)
-            for a in range(k):
-                for b in range(k):
+            beta = solve_small(load(g, w, G_RZ), load(g, w, G_RZ_NEW), dependent)
+            store(beta, coef, w, BETA)
+            for a in range(K):
+                for b in range(K):
                     g[w, G_RZ, a, b] = g[w, G_RZ_NEW, a, b]
                     g[w, G_RZ_NEW, a, b] = wp.float64(0.0)
                     g[w, G_PAP, a, b] = wp.float64(0.0)
@@ -359,28 +367,27 @@ def small_kernels(columns: int):
                         finite = 0
         converged = wp.int32(1)
         its = wp.int32(0)
-        for c in range(k):
+        for c in range(K):
             if not wp.isfinite(scal[c, w, B2]):  # (a NaN right-hand side is no column left out)
                 finite = 0
-            if not live(scal, c, w):
-                continue
-            if advance != 0:
-                scal[c, w, R2_LAST] = scal[c, w, R2]
-                scal[c, w, ITS] = scal[c, w, ITS] + wp.float64(1.0)
-            scal[c, w, R2] = wp.float64(0.0)
-            r2 = scal[c, w, R2_LAST]
-            its = wp.int32(scal[c, w, ITS])
-            if not wp.isfinite(r2):
-                finite = 0
-            elif r2 > tolerance * tolerance * scal[c, w, B2]:
-                converged = 0
+            if live(scal, c, w):
+                if advance != 0:
+                    scal[c, w, R2_LAST] = scal[c, w, R2]
+                    scal[c, w, ITS] = scal[c, w, ITS] + wp.float64(1.0)
+                scal[c, w, R2] = wp.float64(0.0)
+                r2 = scal[c, w, R2_LAST]
+                its = wp.int32(scal[c, w, ITS])
+                if not wp.isfinite(r2):
+                    finite = 0
+                elif r2 > tolerance * tolerance * scal[c, w, B2]:
+                    converged = 0
         wp.atomic_max(info, ITERATIONS, its)
         if finite == 0:
             info[NONFINITE] = 1
             converged = 1
         if converged != 0 or its >= max_iterations:
             wdone[w] = 1
-            for c in range(k):
+            for c in range(K):
                 scal[c, w, DONE] = wp.float64(1.0)
         else:
             active[0] = 1

@@ -236,7 +236,7 @@ class PCG:
         k, n = x.shape
         self.op.apply(self.p, self.ap, self.scal)  # the worlds done are skipped, here and below
         self._gram(self.p, self.ap, blockk.G_PAP)
-        launch(blockk.small_kernels(k)[0], m.num_worlds, inputs=[self.gram, self.wdone, k, self.dependent],
+        launch(blockk.small_kernels(k)[0], m.num_worlds, inputs=[self.gram, self.wdone, self.dependent],
                outputs=[self.coef, self.active], device=d)
         blockk.launch_worlds(blockk.block_update_kernel(k), m.num_worlds, [x, self.r, self.p, self.ap, m.mask,
                                                                           self.world_start, self.scal, self.wdone,
@@ -254,8 +254,7 @@ class PCG:
 
     def _block_scalars(self, advance: int) -> None:
         launch(blockk.small_kernels(self.r.shape[0])[1], self.op.model.num_worlds,
-               inputs=[self.scal, self.gram, self.tolerance, self.max_iterations, advance, self.held, self.r.shape[0],
-                       self.dependent],
+               inputs=[self.scal, self.gram, self.tolerance, self.max_iterations, advance, self.held, self.dependent],
                outputs=[self.wdone, self.coef, self.info, self.active],
                device=self.op.model.device)
 
