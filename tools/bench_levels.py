@@ -67,6 +67,49 @@ def retype(pre, made: tuple, index, value) -> None:
     pre.index_dtype, pre.value_dtype = index, value
 
 
+def level_table(pre, columns: int) -> list[dict]:
+    """Per launch of the panels' levels with every world's tasks (forward, then backward): its
+    panels, values, columns read (each an index and an operand row of ``columns`` numbers), the
+    lanes a panel takes and the longest lane's walk (columns), and the bytes it reads at least
+    (each value and column index once; the operand rows, which a supernode's panels share, not
+    counted)."""
+    out = []
+    vsize = np.dtype(wp.dtype_to_numpy(pre.value_dtype)).itemsize
+    isize = np.dtype(wp.dtype_to_numpy(pre.index_dtype)).itemsize
+    for direction, (tasks, _col, _val, levels, _spans) in zip(("forward", "backward"), pre.solves, strict=True):
+        t = tasks.numpy()
+        for j, (first, count, reads, _most) in enumerate(levels):
+            part = t[first:first + count]
+            width = part[:, 4] + part[:, 5]
+            lanes = pre.panel_lanes(reads, 0)
+            values, walk = int((part[:, 1] * width).sum()), np.ceil(width / lanes)
+            out.append({"direction": direction, "level": j, "panels": int(count), "lanes": lanes,
+                        "values": values, "columns": int(width.sum()), "walk_mean": float(walk.mean()),
+                        "walk_max": int(walk.max()),
+                        "bytes": values * vsize + int(width.sum()) * isize,
+                        "operand_bytes": int(width.sum()) * columns * vsize})
+    return out
+
+
+def per_level(pre, r, z, device: str, repeats: int = 5) -> list[dict]:
+    """:func:`level_table` with each level's median device time (ms) over ``repeats`` products with
+    every world, launched one by one (not from a graph) and timed by CUDA events."""
+    table = level_table(pre, r.shape[0])
+    pre.apply(r, z)
+    wp.synchronize_device(device)
+    wp.timing_begin(cuda_filter=wp.TIMING_KERNEL)
+    for _ in range(repeats):
+        pre.apply(r, z)
+    timed = [t for t in wp.timing_end() if "factor_panel" in t.name]
+    if len(timed) != repeats * len(table):
+        raise RuntimeError(f"per_level: {len(timed)} panel launches timed, {repeats * len(table)} expected")
+    ms = np.array([t.elapsed for t in timed]).reshape(repeats, len(table))
+    for row, t in zip(table, np.median(ms, axis=0), strict=True):
+        row["ms"] = float(t)
+        row["gb_per_s"] = row["bytes"] / t / 1e6
+    return table
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--designs", type=int, default=1024)
@@ -95,6 +138,8 @@ def main(argv=None) -> int:
                          "none, or shares of the worlds, comma-separated (0.25,0.05)")
     ap.add_argument("--warmup", type=int, default=4, help="steps before (their last gives the running worlds)")
     ap.add_argument("--device", default="cuda", help="cuda (what it is for) or cpu (a check that it runs)")
+    ap.add_argument("--per-level", action="store_true",
+                    help="CUDA, panels: each level's time with every world (the preconditioner as made), and its bytes")
     ap.add_argument("--out", default=None, help="a JSON file for the results")
     args = ap.parse_args(argv)
     device = args.device
@@ -118,7 +163,17 @@ def main(argv=None) -> int:
         s = np.zeros(solver.scal.shape)
         s[:, its <= i, DONE] = 1.0
         masks.append(wp.array(s, dtype=wp.float64, device=device))
-    results, first = [], None
+    results, first, levels = [], None, None
+    if args.per_level and pre.layout == "panels" and wp.get_device(device).is_cuda:
+        pre.watch(masks[0])
+        levels = per_level(pre, r, z, device)
+        for row in levels:
+            print(f"level {row['direction'][:4]} {row['level']:2d}: {row['panels']:7d} panels, "
+                  f"{row['lanes']:2d} lanes, walk {row['walk_mean']:5.1f} (most {row['walk_max']:4d}), "
+                  f"{row['values'] / 1e6:7.2f} M values, {row['bytes'] / 1e6:7.1f} MB (operands "
+                  f"{row['operand_bytes'] / 1e6:7.1f}): {1e3 * row['ms']:7.1f} us, {row['gb_per_s']:6.0f} GB/s",
+                  flush=True)
+        print(f"levels: {sum(r_['ms'] for r_ in levels):.3f} ms in all", flush=True)
     kept = pre.whole_rows, pre.lanes, pre.tiers, pre.short_lanes, pre.tail_lanes
     tail_lanes = [[int(n) for n in t.split(",")] for t in args.tail_lanes] if args.tail_lanes else [pre.tail_lanes]
     spreads = [tuple(float(n) for n in t.split(",")) for t in args.panel_spread] if args.panel_spread else [None]
@@ -186,7 +241,7 @@ def main(argv=None) -> int:
     pre.watch(solver.scal)
     if args.out:
         Path(args.out).write_text(json.dumps({"designs": args.designs, "iterations": its.tolist(),
-                                              "results": results}, indent=1))
+                                              "results": results, "levels": levels}, indent=1))
     return 0
 
 
