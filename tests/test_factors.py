@@ -157,8 +157,9 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout, mo
         pre.apply(r, z)
         assert np.array_equal(z.numpy(), fresh.numpy())
     # few worlds running: their tasks alone, launched for a tier of running worlds (1 or 2 of
-    # them here, or never: every world's tasks): the same numbers, the others untouched
-    for done in ([0], [0, 1], [1]):
+    # them here, or never: every world's tasks): the same numbers, the others untouched; with
+    # every world running, the branch whose panels do not test their world
+    for done in ([], [0], [0, 1], [1]):
         s = np.zeros((2, 3, NUM_SCALARS))
         s[:, done, DONE] = 1.0
         scal.assign(s)

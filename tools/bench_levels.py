@@ -133,13 +133,16 @@ def main(argv=None) -> int:
                     help="panels: the columns a lane takes at full load and in the tail, comma-separated (4,1)")
     ap.add_argument("--panel-rows", type=int, nargs="*", default=None, help="panels: rows a panel at most")
     ap.add_argument("--panel-unroll", type=int, nargs="*", default=None, help="panels: columns a lane loads at a time")
+    ap.add_argument("--unchecked", type=int, nargs="*", default=None, choices=[0, 1],
+                    help="panels: 1 when every world runs, the tasks do not test their world (default: the "
+                         "preconditioner's)")
     ap.add_argument("--tail", nargs="*", default=["default"],
                     help="the tiers of running worlds whose tasks launch alone: default (the preconditioner's), "
                          "none, or shares of the worlds, comma-separated (0.25,0.05)")
     ap.add_argument("--warmup", type=int, default=4, help="steps before (their last gives the running worlds)")
     ap.add_argument("--device", default="cuda", help="cuda (what it is for) or cpu (a check that it runs)")
     ap.add_argument("--per-level", action="store_true",
-                    help="CUDA, panels: each level's time with every world (the preconditioner as made), and its bytes")
+                    help="CUDA, panels: each variant's levels, each one's time with every world and its bytes")
     ap.add_argument("--out", default=None, help="a JSON file for the results")
     args = ap.parse_args(argv)
     device = args.device
@@ -163,18 +166,8 @@ def main(argv=None) -> int:
         s = np.zeros(solver.scal.shape)
         s[:, its <= i, DONE] = 1.0
         masks.append(wp.array(s, dtype=wp.float64, device=device))
-    results, first, levels = [], None, None
-    if args.per_level and pre.layout == "panels" and wp.get_device(device).is_cuda:
-        pre.watch(masks[0])
-        levels = per_level(pre, r, z, device)
-        for row in levels:
-            print(f"level {row['direction'][:4]} {row['level']:2d}: {row['panels']:7d} panels, "
-                  f"{row['lanes']:2d} lanes, walk {row['walk_mean']:5.1f} (most {row['walk_max']:4d}), "
-                  f"{row['values'] / 1e6:7.2f} M values, {row['bytes'] / 1e6:7.1f} MB (operands "
-                  f"{row['operand_bytes'] / 1e6:7.1f}): {1e3 * row['ms']:7.1f} us, {row['gb_per_s']:6.0f} GB/s",
-                  flush=True)
-        print(f"levels: {sum(r_['ms'] for r_ in levels):.3f} ms in all", flush=True)
-    kept = pre.whole_rows, pre.lanes, pre.tiers, pre.short_lanes, pre.tail_lanes
+    results, first = [], None
+    kept = pre.whole_rows, pre.lanes, pre.tiers, pre.short_lanes, pre.tail_lanes, pre.unchecked_full
     tail_lanes = [[int(n) for n in t.split(",")] for t in args.tail_lanes] if args.tail_lanes else [pre.tail_lanes]
     spreads = [tuple(float(n) for n in t.split(",")) for t in args.panel_spread] if args.panel_spread else [None]
     made = pre.solves, pre.index_dtype, pre.value_dtype
@@ -188,9 +181,12 @@ def main(argv=None) -> int:
                 for v in (variants if lay == "rows" else [u for u in variants if u[3:] == variants[0][3:]])
                 for sp in (spreads if lay == "panels" else [None])
                 for pu in (args.panel_unroll or [pre.panel_unroll] if lay == "panels" else [None])]
+    variants = [(*v, unchecked) for v in variants for unchecked in args.unchecked or [int(pre.unchecked_full)]]
     # (each layout's factors made at the same rotations)
     made_as = None if args.layout or args.panel_rows else (pre.layout, pre.panel_rows)
-    for (layout, panel_rows), spread, panel_unroll, entry, tail, loads, lanes, unroll, short, tail_short in variants:
+    for ((layout, panel_rows), spread, panel_unroll, entry, tail, loads, lanes, unroll, short, tail_short,
+         unchecked) in variants:
+        pre.unchecked_full = bool(unchecked)
         if (layout, panel_rows) != made_as:  # the factors made again, laid out
             t1 = time.perf_counter()
             retype(pre, made, *made[1:])
@@ -219,29 +215,41 @@ def main(argv=None) -> int:
         differs = [float(np.abs(g - f).max() / np.abs(f).max()) for g, f in zip(got, first, strict=True)]
         pre.watch(masks[0])
         full = replayed(lambda: pre.apply(r, z), device, 10, 5)
+        levels = None
+        if args.per_level and layout == "panels" and wp.get_device(device).is_cuda:
+            levels = per_level(pre, r, z, device)
+            for row in levels:
+                print(f"level {row['direction'][:4]} {row['level']:2d}: {row['panels']:7d} panels, "
+                      f"{row['lanes']:2d} lanes, walk {row['walk_mean']:5.1f} (most {row['walk_max']:4d}), "
+                      f"{row['values'] / 1e6:7.2f} M values, {row['bytes'] / 1e6:7.1f} MB (operands "
+                      f"{row['operand_bytes'] / 1e6:7.1f}): {1e3 * row['ms']:7.1f} us, {row['gb_per_s']:6.0f} GB/s",
+                      flush=True)
+            print(f"levels: {sum(row['ms'] for row in levels):.3f} ms in all", flush=True)
         sequence = []
         for mask in masks:
             pre.watch(mask)
             sequence.append(replayed(lambda: pre.apply(r, z), device, 5, 3))
         results.append({"layout": layout, "panel_rows": panel_rows, "panel_spread": spread,
-                        "panel_unroll": panel_unroll,
+                        "panel_unroll": panel_unroll, "unchecked": unchecked,
                         "entries": entry, "tail": pre.tiers, "loads": loads, "lanes": lanes, "unroll": unroll,
                         "short_lanes": short, "tail_lanes": tail_short, "full_ms": full, "solve_ms": sum(sequence),
-                        "sequence_ms": sequence, "max_difference": differs})
-        panels = "" if layout == "rows" else f" of {panel_rows} rows, spread {pre.panel_spread}, unroll {panel_unroll}"
+                        "sequence_ms": sequence, "max_difference": differs, "levels": levels})
+        panels = "" if layout == "rows" else (f" of {panel_rows} rows, spread {pre.panel_spread}, unroll "
+                                              f"{panel_unroll}, unchecked {unchecked}")
         print(f"{layout}{panels}, entries {entry}, tail {pre.tiers}, {loads}, {lanes} lanes, unroll {unroll}, "
               f"short rows {short} lanes, "
               f"in the tail {tail_short}: P^-1 {full:.3f} ms with every world; a "
               f"solve's {len(sequence)} {sum(sequence):.2f} ms [{' '.join(f'{t:.2f}' for t in sequence)}]; "
               f"differs by {differs[0]:.3g} (every world), {differs[1]:.3g} (the last iteration)", flush=True)
     retype(pre, made, *made[1:])
+    pre.unchecked_full = bool(kept[5])
     pre.whole_rows, pre.lanes = kept[:2]
     pre.tail(kept[2])
-    pre.short_lanes, pre.tail_lanes = kept[3:]
+    pre.short_lanes, pre.tail_lanes = kept[3:5]
     pre.watch(solver.scal)
     if args.out:
         Path(args.out).write_text(json.dumps({"designs": args.designs, "iterations": its.tolist(),
-                                              "results": results, "levels": levels}, indent=1))
+                                              "results": results}, indent=1))
     return 0
 
 

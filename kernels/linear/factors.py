@@ -98,8 +98,9 @@ UNROLL = 4  # entries a thread loads before it sums them (docs/performance.md)
 def _row_load(width: int, dtype):
     """``load_row(src, j)``: row ``j`` of a ``(rows, width)`` operand as a ``(width,)`` vector, read
     from the row's address, found once, rather than indexed number by number: on the CPU the
-    levels' ``P^-1`` of 4 Diamonds took 6.0 -> 4.8 ms. On CUDA the indexed loads are the faster
-    (1024 Diamonds: 5.0 against 5.9 ms; rows padded to 16-byte loads, 5.2): docs/performance.md."""
+    levels' ``P^-1`` of 4 Diamonds took 6.0 -> 4.8 ms. On CUDA a task a row is the faster indexed
+    (1024 Diamonds: 5.0 against 5.9 ms; rows padded to 16-byte loads, 5.2), a panel read whole
+    (3.30 -> 3.21 ms): docs/performance.md."""
     key = ("load", width, dtype)
     if key in _kernels:
         return _kernels[key]
@@ -399,27 +400,32 @@ def _lane_scatter(size: int, dtype, lanes: int):
     return _kernels[key]
 
 
-# a panel task: its first row (world-flat), rows, first value, first column, input and output columns
-panel_task = wp.types.vector(length=6, dtype=wp.int32)
+# a panel task: its first row (world-flat), rows, first value, first column, input and output columns,
+# its world and the world's first row (so that a lane finds them in the task it loads, not by two more
+# loads one after the other)
+panel_task = wp.types.vector(length=8, dtype=wp.int32)
 PANEL_UNROLL = 4  # columns a panel's lane loads at a time
 
 
 def panel_kernel(columns: int, dtype, rows: int, lanes: int, unroll: int = PANEL_UNROLL, whole: bool = False,
-                 compact: bool = False, entry: tuple | None = None):
-    """``factor_panel(tasks, first, col, val, node_world, world_row, scal, inp, out, count, worlds,
-    spans, per)``: one level of panels (``warpsoft/linear/supernodal.py``'s :class:`Panels`), for
-    ``k = columns`` right-hand sides in precision ``dtype``, at most ``rows`` rows a panel,
-    ``lanes`` neighbouring threads a panel (a power of 2 up to 32; a launch of ``tasks x lanes``
-    threads, or ``running x per x lanes`` with ``compact``: :func:`_task_at`, rounded up to whole
-    warps). Task ``(row, h, v0, c0, ni, no)`` writes ``out[row + i, c] = sum_q val[v0 + i (ni +
-    no) + q] src_q[base + col[c0 + q], c]`` for its ``h`` rows, ``src_q`` the input for ``q <
-    ni``, the output after. Lane ``l`` takes the columns ``q = l, l + lanes, ...``: it reads each
-    column's operand row once for the panel's rows (a thread a row reads it once a row), ``unroll``
-    columns at a time (their loads issued together, then summed in order), and warp shuffles add
-    the lanes' ``rows x k`` sums, each lane then writing a share (:func:`_lane_scatter`).
-    ``whole``, ``compact`` and ``entry``: as :func:`level_kernel`'s."""
+                 compact: bool = False, entry: tuple | None = None, check: bool = True):
+    """``factor_panel(tasks, first, col, val, scal, inp, out, count, worlds, spans, per)``: one
+    level of panels (``warpsoft/linear/supernodal.py``'s :class:`Panels`), for ``k = columns``
+    right-hand sides in precision ``dtype``, at most ``rows`` rows a panel, ``lanes`` neighbouring
+    threads a panel (a power of 2 up to 32; a launch of ``tasks x lanes`` threads, or ``running x
+    per x lanes`` with ``compact``: :func:`_task_at`, rounded up to whole warps). Task ``(row, h,
+    v0, c0, ni, no, w, base)`` of world ``w``, whose first row is ``base``, writes ``out[row + i, c]
+    = sum_q val[v0 + i (ni + no) + q] src_q[base + col[c0 + q], c]`` for its ``h`` rows, ``src_q``
+    the input for ``q < ni``, the output after. Lane ``l`` takes the columns ``q = l, l + lanes,
+    ...``: it reads each column's operand row once for the panel's rows (a thread a row reads it
+    once a row), ``unroll`` columns at a time (their loads issued together, then summed in order),
+    and warp shuffles add the lanes' ``rows x k`` sums, each lane then writing a share
+    (:func:`_lane_scatter`). ``whole``, ``compact`` and ``entry``: as :func:`level_kernel`'s.
+    ``check`` False: every world's tasks run, with no test of their world's columns (when every
+    world runs: a task's lanes then wait for two loads, the task and its first columns, before the
+    operands, not three)."""
     index, value = (wp.int32, dtype) if entry is None else entry
-    key = ("panel", columns, dtype, rows, lanes, unroll, whole, compact, index, value)
+    key = ("panel", columns, dtype, rows, lanes, unroll, whole, compact, index, value, check)
     if key in _kernels:
         return _kernels[key]
     K, H, L, U = columns, rows, lanes, unroll
@@ -473,10 +479,9 @@ def panel_kernel(columns: int, dtype, rows: int, lanes: int, unroll: int = PANEL
 
     @wp.kernel(module="unique")
     def factor_panel(tasks: wp.array(dtype=panel_task), first: int, col: wp.array(dtype=index),
-                     val: wp.array(dtype=value), node_world: wp.array(dtype=wp.int32),
-                     world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
-                     inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype), count: wp.array(dtype=wp.int32),
-                     worlds: wp.array(dtype=wp.int32), spans: wp.array(dtype=wp.vec2i), per: int):
+                     val: wp.array(dtype=value), scal: wp.array3d(dtype=wp.float64), inp: wp.array2d(dtype=dtype),
+                     out: wp.array2d(dtype=dtype), count: wp.array(dtype=wp.int32), worlds: wp.array(dtype=wp.int32),
+                     spans: wp.array(dtype=wp.vec2i), per: int):
         tid = wp.tid()
         lane = tid % L
         at = task_at(tid // L, first, count, worlds, spans, per)
@@ -485,14 +490,13 @@ def panel_kernel(columns: int, dtype, rows: int, lanes: int, unroll: int = PANEL
         acc = block()
         if at >= 0:
             t = tasks[at]
-            w = node_world[t[0] // 3]
             live = True
-            if wp.static(not compact):
-                live = running(scal, w)  # (the same for the task's lanes)
+            if wp.static(check and not compact):
+                live = running(scal, t[6])  # (the same for the task's lanes)
             if live:
                 row = t[0]
                 height = t[1]
-                base = world_row[w]
+                base = t[7]
                 stride = t[4] + t[5]
                 # the diagonal block's inverse on the input, then the rows solved at earlier levels
                 acc = columns_of(acc, height, t[2], stride, t[3], 0, t[4], lane, base, col, val, inp)
@@ -540,10 +544,12 @@ def running_worlds(columns: int):
 
 
 @wp.kernel
-def pick_tail(count: wp.array(dtype=wp.int32), tiers: wp.array(dtype=wp.int32), branch: wp.array(dtype=wp.int32)):
+def pick_tail(count: wp.array(dtype=wp.int32), tiers: wp.array(dtype=wp.int32), worlds: int,
+              branch: wp.array(dtype=wp.int32)):
     """One thread: ``branch[j] = 1`` for the smallest tier ``j`` that holds the ``count[0]``
-    running worlds (``tiers`` ascending), or for the last entry (every world's tasks) when none
-    does; 0 elsewhere."""
+    running worlds (``tiers`` ascending, ``n`` of them); else ``branch[n] = 1`` (every world's
+    tasks, each testing its world) when some of the ``worlds`` have converged, ``branch[n + 1] =
+    1`` (every world's tasks, untested) when none has; 0 elsewhere."""
     n = tiers.shape[0]
     pick = wp.int32(n)
     for j in range(n):
@@ -551,4 +557,7 @@ def pick_tail(count: wp.array(dtype=wp.int32), tiers: wp.array(dtype=wp.int32), 
         if pick == n and count[0] <= tiers[j]:
             pick = wp.int32(j)
     branch[n] = 0
+    branch[n + 1] = 0
+    if pick == n and count[0] >= worlds:
+        pick = n + 1
     branch[pick] = 1

@@ -18,6 +18,9 @@ The default layout is now panels (:meth:`~warpsoft.linear.supernodal.Supernodal.
 is up to :data:`PANEL_ROWS` rows of a supernode that read the same columns, listed once and read
 once for them, a few lanes a panel sharing its columns (1024 Diamonds on the H200: P^-1 4.90 ->
 3.45 ms, a step 70.9 -> 60.5 ms; docs/performance.md); ``layout="rows"`` keeps a task a row.
+A panel's task holds its world and the world's first row, and when every world runs its lanes
+skip the test of their world (with the operand rows read whole, P^-1 3.39 -> 3.21 ms, a step
+60.5-60.9 -> 58.5 ms).
 
 So ``P^-1 = Q blockdiag(s_w^-1 P_b^T L_b^-T L_b^-1 P_b) Q^T``: the same preconditioner as the
 dense inverse (the rest system's exact inverse, turned by the node rotations), at a fraction of
@@ -118,17 +121,18 @@ class WorldFactors(WorldGroups):
     and backward solves' launches), ``entries`` (the programs' numbers, all blocks), ``refreshes``,
     ``memory_bytes``, ``lanes`` and ``lanes_from`` (the threads a row of the levels whose rows
     average that many entries; H200, 1024 different Diamonds: P^-1 26.6 -> 9.8 ms with 32 from 128),
-    ``width`` (the slices' rows in the other levels), ``unroll`` (the entries a level's thread
-    loads at a time), ``whole_rows`` (the levels read an operand row from its address: the CPU's
-    faster way; CUDA indexes its numbers), ``workers`` (the processes that factorize the blocks,
-    :data:`WORKERS`; the GPU machine's 16 for 256 different Diamonds: 49.2 -> 15.2 s), ``tiers``
-    (the counts of running worlds at or below which the levels launch those worlds' tasks alone,
-    from :data:`TAIL` on CUDA: :meth:`tail`), ``short_lanes`` and ``tail_lanes`` (the threads a
-    row of the sliced levels takes with every world's tasks, :data:`SHORT_LANES`, and at each tier,
-    :data:`TAIL_LANES`), ``index_dtype`` (the entries' columns: ``uint16`` when every factor has at
-    most :data:`NARROW_PLACES` places, else ``int32``); with ``layout="panels"``: ``panel_rows``
-    (:data:`PANEL_ROWS`), ``panel_spread`` (:data:`PANEL_SPREAD`) and ``panel_unroll`` (the columns
-    a lane loads at a time).
+    ``width`` (the slices' rows in the other levels), ``unroll`` (the entries a level's thread loads
+    at a time), ``whole_rows`` (the levels read an operand row from its address: the CPU's faster
+    way, and the panels' on CUDA, where a task a row indexes its numbers), ``workers`` (the
+    processes that factorize the blocks, :data:`WORKERS`; the GPU machine's 16 for 256 different
+    Diamonds: 49.2 -> 15.2 s), ``tiers`` (the counts of running worlds at or below which the levels
+    launch those worlds' tasks alone, from :data:`TAIL` on CUDA: :meth:`tail`), ``short_lanes`` and
+    ``tail_lanes`` (the threads a row of the sliced levels takes with every world's tasks,
+    :data:`SHORT_LANES`, and at each tier, :data:`TAIL_LANES`), ``index_dtype`` (the entries'
+    columns: ``uint16`` when every factor has at most :data:`NARROW_PLACES` places, else ``int32``);
+    with ``layout="panels"``: ``panel_rows`` (:data:`PANEL_ROWS`), ``panel_spread``
+    (:data:`PANEL_SPREAD`) and ``panel_unroll`` (the columns a lane loads at a time),
+    ``unchecked_full`` (when every world runs, the panels' tasks do not test their world).
     """
 
     capturable = True
@@ -158,9 +162,9 @@ class WorldFactors(WorldGroups):
         # the solves' operands, flat (3 nodes, k), each world's rows in its factor's order
         # (``place``): input, forward, backward
         self.u, self.y, self.x = (wp.zeros((rows, self.columns), dtype=self.dtype, device=d) for _ in range(3))
-        # the levels read an operand row from its address on the CPU, indexed on CUDA (the faster
-        # on each: ``_row_load`` in kernels/linear/factors.py)
-        self.whole_rows = not d.is_cuda
+        # the levels read an operand row from its address on the CPU and in panels, indexed on CUDA
+        # in rows (the faster on each: ``_row_load`` in kernels/linear/factors.py)
+        self.whole_rows = self.layout == "panels" or not d.is_cuda
         self.world_row = wp.array((3 * m.world_node_start[:-1]).astype(np.int32), dtype=wp.int32, device=d)
         self.patterns = {}  # mesh -> the lower triangle of its system over its free DOFs
         for key, (local, nodes) in self.meshes.items():
@@ -189,6 +193,9 @@ class WorldFactors(WorldGroups):
         # per tier, the last for any more; the CPU's one thread has one lane)
         self.short_lanes = SHORT_LANES if d.is_cuda else 1
         self.tail_lanes = list(TAIL_LANES) if d.is_cuda else [1]
+        # when every world runs (the branch the tail's count picks), the panels' kernels skip the
+        # test of a task's world: its lanes wait for one load fewer before the operands
+        self.unchecked_full = True
         self.tail(sorted({math.ceil(f * m.num_worlds) for f in TAIL}) if d.is_cuda else [])
 
     def tail(self, tiers: list[int]) -> None:
@@ -201,7 +208,8 @@ class WorldFactors(WorldGroups):
             raise ValueError(f"WorldFactors: the tail's tiers must ascend, got {tiers}")
         d = self.op.model.device
         self.tiers_d = wp.array(self.tiers or [0], dtype=wp.int32, device=d)
-        self.branch = wp.zeros(len(self.tiers) + 1, dtype=wp.int32, device=d)  # (one of tiers + 1 runs)
+        # one of tiers + 2 runs: a tier, every world's tasks tested, or untested when all run
+        self.branch = wp.zeros(len(self.tiers) + 2, dtype=wp.int32, device=d)
 
     @property
     def levels(self) -> tuple[int, int]:
@@ -364,8 +372,9 @@ class WorldFactors(WorldGroups):
             for w in range(m.num_worlds):
                 b = int(self.block_of[w])
                 p = progs[b]
-                tasks.append(np.column_stack([3 * int(m.world_node_start[w]) + p.row, p.height,
-                                              p.val_start + values[b], p.col_start + cols[b], p.reads]))
+                base = 3 * int(m.world_node_start[w])
+                tasks.append(np.column_stack([base + p.row, p.height, p.val_start + values[b], p.col_start + cols[b],
+                                              p.reads, np.full(len(p.row), w), np.full(len(p.row), base)]))
                 levels.append(p.level)
                 per_world[:, w] = np.bincount(p.level, minlength=depth)
             tasks, levels = np.concatenate(tasks), np.concatenate(levels)
@@ -397,10 +406,13 @@ class WorldFactors(WorldGroups):
             self.running.zero_()
             launch(kernels.running_worlds(k), m.num_worlds, inputs=[self._done], outputs=[self.running,
                                                                                           self.running_list], device=d)
-            launch(kernels.pick_tail, 1, inputs=[self.running, self.tiers_d], outputs=[self.branch], device=d)
+            launch(kernels.pick_tail, 1, inputs=[self.running, self.tiers_d, m.num_worlds], outputs=[self.branch],
+                   device=d)
             for j, tier in enumerate(self.tiers):
                 wp.capture_if(self.branch[j:j + 1], self._levels, k=k, tier=tier)
-            wp.capture_if(self.branch[len(self.tiers):], self._levels, k=k, tier=0)
+            n = len(self.tiers)
+            wp.capture_if(self.branch[n:n + 1], self._levels, k=k, tier=0)
+            wp.capture_if(self.branch[n + 1:], self._levels, k=k, tier=0, check=not self.unchecked_full)
         else:
             self._levels(k, 0)
         launch(kernels.rotate_out(self.dtype, k), m.num_nodes,
@@ -413,14 +425,15 @@ class WorldFactors(WorldGroups):
         lanes = self.tail_lanes
         return lanes[min(self.tiers.index(tier), len(lanes) - 1)] if len(lanes) else 1
 
-    def _levels(self, k: int, tier: int) -> None:
+    def _levels(self, k: int, tier: int, check: bool = True) -> None:
         """The two triangular solves, level by level: every world's tasks (``tier`` 0), or those of
         the running worlds, at most ``tier`` of them (a level's launch: ``tier`` times its most
-        tasks of a world). A long row takes ``lanes`` threads, a short one ``_short_lanes(tier)``."""
+        tasks of a world). A long row takes ``lanes`` threads, a short one ``_short_lanes(tier)``.
+        ``check`` False (when every world runs): the panels' tasks do not test their world."""
         m, d = self.op.model, self.op.model.device
         compact = tier > 0
         if self.layout == "panels":
-            self._panel_levels(k, tier)
+            self._panel_levels(k, tier, check)
             return
         short = self._short_lanes(tier)
         entry = (self.index_dtype, self.value_dtype)
@@ -451,9 +464,9 @@ class WorldFactors(WorldGroups):
         spread = self.panel_spread[0 if tier == 0 else 1]
         return int(min(32, 2 ** max(0, math.ceil(math.log2(max(reads / spread, 1.0))))))
 
-    def _panel_levels(self, k: int, tier: int) -> None:
+    def _panel_levels(self, k: int, tier: int, check: bool) -> None:
         """:meth:`_levels` for panels: a launch a level, ``panel_lanes`` threads a panel."""
-        m, d = self.op.model, self.op.model.device
+        d = self.op.model.device
         compact = tier > 0
         entry = (self.index_dtype, self.value_dtype)
         for (tasks, col, val, levels, spans), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x),
@@ -461,10 +474,10 @@ class WorldFactors(WorldGroups):
             for j, (first, count, reads, most) in enumerate(levels):
                 lanes = self.panel_lanes(reads, tier)
                 kernel = kernels.panel_kernel(k, self.dtype, self.panel_height, lanes, self.panel_unroll,
-                                              self.whole_rows, compact, entry)
+                                              self.whole_rows, compact, entry, check)
                 threads = (tier * most if compact else count) * lanes
                 if lanes > 1:  # whole warps: each thread reaches the shuffles
                     threads = -(-threads // 32) * 32
-                launch(kernel, threads, inputs=[tasks, first, col, val, m.node_world, self.world_row, self._done, inp],
+                launch(kernel, threads, inputs=[tasks, first, col, val, self._done, inp],
                        outputs=[out, self.running, self.running_list, spans[j], most if compact else count],
                        device=d)
