@@ -41,8 +41,19 @@ import numpy as np
 import scipy.sparse as sp
 
 
+class _Levelled:
+    """A solve cut into levels: ``level`` ``(tasks,)`` each task's, from 0."""
+
+    level: np.ndarray
+
+    @property
+    def levels(self) -> int:
+        """Launches: the last level + 1 (0 with no task)."""
+        return int(self.level.max()) + 1 if len(self.level) else 0
+
+
 @dataclass
-class Program:
+class Program(_Levelled):
     """One triangular solve as levels of rows, each row ``out[row] = sum(val * inp[col]) over
     its first part + sum(val * out[col]) over its second`` (the second part's values negated).
 
@@ -61,10 +72,6 @@ class Program:
     col: np.ndarray
     val: np.ndarray
 
-    @property
-    def levels(self) -> int:
-        return int(self.level.max()) + 1 if len(self.level) else 0
-
     def run(self, b: np.ndarray) -> np.ndarray:
         """The solve on the host, level by level, for ``b`` ``(n,)`` or ``(n, k)`` (the reference of
         the kernels, in the tests)."""
@@ -78,7 +85,7 @@ class Program:
 
 
 @dataclass
-class Panels:
+class Panels(_Levelled):
     """One triangular solve as levels of panels: a panel is ``height`` consecutive rows of one
     supernode, from ``row``, that read the same columns: ``out[row + i] = sum_q val[i, q]
     src_q[col_q]`` over its columns ``q``, the first ``reads[0]`` read from the input, the next
@@ -104,10 +111,6 @@ class Panels:
     val_start: np.ndarray
     col: np.ndarray
     val: np.ndarray
-
-    @property
-    def levels(self) -> int:
-        return int(self.level.max()) + 1 if len(self.level) else 0
 
     def run(self, b: np.ndarray) -> np.ndarray:
         """The solve on the host, level by level, for ``b`` ``(n,)`` or ``(n, k)`` (the kernels'
