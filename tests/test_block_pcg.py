@@ -162,3 +162,37 @@ def test_nearly_equal_columns_in_single_precision_do_not_break_the_block(precond
     motion = np.abs(want - block.model.rest_np).max()
     assert motion > 1e-4
     assert np.abs(x - want).max() < 1e-5 * motion
+
+
+def test_single_precision_directions_meet_the_same_tolerance():
+    """The block CG's directions ``P`` and ``Z`` stored in float32 (``directions``, "auto" with a
+    float32 factor and the assembled operator): ``X``, ``R`` and ``A P`` stay float64, so four cabled
+    bars of different stiffness take the same iterations as with float64 directions and end at the
+    direct solver's positions as closely. The matrix-free operator takes no float32 column."""
+    designs = [cabled_bar(e) for e in (1e5, 2e5, 4e5, 6e5)]
+    runs = {}
+    for directions in ("float64", "auto"):
+        sim = ws.Simulator(ws.finalize(designs), solver="pcg", preconditioner="factors", precision="float32",
+                           operator="assembled", tolerance=1e-8, directions=directions)
+        its = [[w.cg_iterations for w in sim.step().worlds] for _ in range(6)]
+        runs[directions] = (sim, np.array(its), sim.state.q.numpy())
+    single = runs["auto"][0].solver
+    assert single.directions == "float32" and single.bp.dtype == wp.vec3f and single.bz.dtype == wp.vec3f
+    assert runs["float64"][0].solver.bp.dtype == wp.vec3d
+    assert np.abs(runs["auto"][1] - runs["float64"][1]).max() <= 1 and runs["auto"][1].max() > 5
+    direct = ws.Simulator(ws.finalize(designs), solver="direct", factor_reuse=0.0)
+    for _ in range(6):
+        direct.step()
+    want = direct.state.q.numpy()
+    motion = np.abs(want - direct.model.rest_np).max()
+    assert motion > 1e-3
+    for _, _, q in runs.values():
+        assert np.abs(q - want).max() < 1e-8 * motion
+    with pytest.raises(ValueError, match="assembled operator"):
+        ws.Simulator(ws.finalize(designs[:2]), solver="pcg", preconditioner="factors", operator="matrix_free",
+                     directions="float32")
+    with pytest.raises(ws.SceneError, match="directions must be"):
+        ws.Simulator(designs[0], solver="pcg", directions="half")
+    matrix_free = ws.Simulator(ws.finalize(designs[:2]), solver="pcg", preconditioner="factors",
+                               operator="matrix_free")
+    assert matrix_free.solver.directions == "float64"

@@ -84,8 +84,8 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
     if pre is not None and getattr(pre, "capturable", False):  # a CG iteration's two big products, alone
         solver = sim.solver
         solver.scal.zero_()  # no world done: the product runs for all of them
-        parts |= {"precond_ms": 1e3 * _median_call(lambda: pre.apply(solver.r, solver.z), sim.model.device),
-                  "operator_ms": 1e3 * _median_call(lambda: sim.operator.apply(solver.p, solver.ap), sim.model.device)}
+        parts |= {"precond_ms": 1e3 * _median_call(lambda: pre.apply(solver.r, solver.bz), sim.model.device),
+                  "operator_ms": 1e3 * _median_call(lambda: sim.operator.apply(solver.bp, solver.ap), sim.model.device)}
         if sim.operator.blocks is not None:  # the assembled operator's refresh, at each linearization
             parts["assemble_ms"] = 1e3 * _median_call(lambda: sim.operator.linearized(), sim.model.device)
     if sim.timing and sim.model.device.is_cuda:  # the graphs' own time (synchronized), the rest is the host's
@@ -150,6 +150,8 @@ def main(argv=None) -> int:
     ap.add_argument("--operator", default="auto", choices=["auto", "matrix_free", "assembled"],
                     help="how the iterative solvers apply A")
     ap.add_argument("--tolerance", type=float, default=1e-6, help="CG relative residual")
+    ap.add_argument("--directions", default="auto", choices=["auto", "float64", "float32"],
+                    help="pcg's block CG: the storage of its search directions")
     ap.add_argument("--warm-start", default="extrapolate", choices=["extrapolate", "last", "none"],
                     help="where each step's first solve starts (the Simulator's warm_start)")
     ap.add_argument("--factor-ordering", default=None, choices=list(ORDERINGS),
@@ -177,6 +179,7 @@ def main(argv=None) -> int:
                "warm_start": args.warm_start}
     if args.solver in ("pcg", "auto"):
         options["block_cg"] = not args.column_cg
+        options["directions"] = args.directions
     for n in args.sizes:
         t0 = time.perf_counter()
         median, dofs, info = step_median(scenes[:n], args.device, args.steps, args.warmup, args.kernels, **options)

@@ -127,6 +127,11 @@ class Simulator:
             model of several worlds only. Measured on the H200 (docs/performance.md): 1024
             Diamonds step 1.18-1.29 times faster with it, one Diamond or Finger 0.1-1.2 ms
             slower (its small solves run on one thread, and an iteration takes two more launches).
+        directions: ``pcg`` with the block CG: how its search directions ``P`` and ``Z = P^-1 R`` are
+            stored, "float64", "float32" (half their bytes; the solution meets the same tolerance:
+            ``X``, ``R`` and ``A P`` stay float64) or "auto" (default): float32 with
+            ``preconditioner="factors"`` in float32 and the assembled operator (a batch on CUDA),
+            float64 elsewhere.
         operator: how the iterative solvers apply ``A``: "matrix_free" (element by element, each
             product; what the direct solver's model has), "assembled" (its 3x3 node blocks
             gathered at each linearization, each product one pass over them for every column:
@@ -143,11 +148,14 @@ class Simulator:
                  factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
                  qp: str = "auto", newton_iterations: int = 10, newton_tolerance: float | None = None,
                  line_search: int = 4, lazy_contacts: bool = True, factor_reuse: float | None = None,
-                 share_tolerance: float = 1e-10, block_cg: bool | None = None, operator: str = "auto"):
+                 share_tolerance: float = 1e-10, block_cg: bool | None = None, operator: str = "auto",
+                 directions: str = "auto"):
         if solver not in SOLVERS:
             raise SceneError(f"Simulator: solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
         if not (0.0 < float(tolerance) < 1.0):
             raise SceneError(f"Simulator: tolerance must lie in (0, 1), got {tolerance!r}")
+        if directions not in ("auto", "float64", "float32"):
+            raise SceneError(f"Simulator: directions must be 'auto', 'float64' or 'float32', got {directions!r}")
         if int(max_iterations) < 1:
             raise SceneError(f"Simulator: max_iterations must be >= 1, got {max_iterations!r}")
         if qp not in ("auto", "piqp", "device"):
@@ -261,7 +269,7 @@ class Simulator:
             self.columns, self.X = self.rhs[1:], self.sol[1:]
         self.solver = make_solver(self.solver_name, self.operator, 1 + ncol, tolerance, max_iterations, graphs,
                                   check_every, factorization, preconditioner, precision, share_tolerance,
-                                  m.num_worlds > 1 if block_cg is None else bool(block_cg))
+                                  m.num_worlds > 1 if block_cg is None else bool(block_cg), directions)
         self.guess = None  # the extrapolated warm starts (iterative solvers)
         if self.warm_start == "extrapolate" and self.solver_name != "direct" and not m.static:
             held = (self.rows.world_actuators + self.rows.world_bilateral if self.rows is not None

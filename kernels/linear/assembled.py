@@ -29,20 +29,24 @@ def gather_blocks(blocks: wp.array(dtype=wp.mat33d), slot_start: wp.array(dtype=
     values[s] = acc
 
 
-def block_product(columns: int):
+def block_product(columns: int, vector=wp.vec3d):
     """``block_product(x, row_start, column, values, scale, mass, mass_scale, world, done, y)`` for
-    ``k = columns`` columns (a compile-time constant, hence cached per ``k``), a thread per node
-    row ``i``: ``y[c, i] = mass_scale mass[i] x[c, i] + scale sum_j values[j] x[c, column[j]]`` over the
-    row's slots; a converged column of the row's world (``done``, the CG scalars ``(k, worlds,
-    slots)``, or empty) keeps what ``y`` held. ``mass`` is empty when ``mass_scale`` is 0."""
-    if columns in _kernels:
-        return _kernels[columns]
+    ``k = columns`` columns (a compile-time constant, hence cached per ``k`` and ``vector``), a
+    thread per node row ``i``: ``y[c, i] = mass_scale mass[i] x[c, i] + scale sum_j values[j]
+    x[c, column[j]]`` over the row's slots; a converged column of the row's world (``done``, the CG
+    scalars ``(k, worlds, slots)``, or empty) keeps what ``y`` held. ``mass`` is empty when
+    ``mass_scale`` is 0. ``x`` holds ``vector`` (vec3d, or vec3f: the block CG's directions in
+    single precision), the sums and ``y`` float64 (the product of the stored directions, exact
+    to float64's rounding)."""
+    key = (columns, vector)
+    if key in _kernels:
+        return _kernels[key]
     K = columns
     sums = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
     flags = wp.types.vector(length=K, dtype=wp.int32)
 
     @wp.kernel(module="unique")
-    def assembled_product(x: wp.array2d(dtype=wp.vec3d), row_start: wp.array(dtype=wp.int32),
+    def assembled_product(x: wp.array2d(dtype=vector), row_start: wp.array(dtype=wp.int32),
                           column: wp.array(dtype=wp.int32), values: wp.array(dtype=wp.mat33d),
                           scale: wp.float64, mass: wp.array(dtype=wp.float64), mass_scale: wp.float64,
                           world: wp.array(dtype=wp.int32), done: wp.array3d(dtype=wp.float64),
@@ -63,13 +67,13 @@ def block_product(columns: int):
             n = column[j]
             for c in range(wp.static(K)):
                 if active[c] != 0:
-                    acc[c] = acc[c] + block * x[c, n]
+                    acc[c] = acc[c] + block * wp.vec3d(x[c, n])
         m = wp.float64(0.0)
         if mass.shape[0] > 0:
             m = mass_scale * mass[i]
         for c in range(wp.static(K)):
             if active[c] != 0:
-                y[c, i] = m * x[c, i] + scale * acc[c]
+                y[c, i] = m * wp.vec3d(x[c, i]) + scale * acc[c]
 
-    _kernels[columns] = assembled_product
+    _kernels[key] = assembled_product
     return assembled_product

@@ -11,9 +11,10 @@ Per world ``w`` and iteration, with ``G_PAP = P^T A P``, ``G_RZ = R^T Z`` (both 
     alpha = G_PAP^-1 G_RZ,   X += P alpha,   R -= A P alpha,   Z = M^-1 R,
     beta = G_RZ^-1 G_RZ_new,  P = Z + P beta.
 
-Vectors are ``(k, n)`` vec3d as in ``pcg.py``; the ``k x k`` matrices of world ``w`` live in
-``gram[w, slot]`` and ``coef[w, slot]`` (float64). A world's columns run until all of them reach
-the tolerance; a column with ``b = 0`` is left out of its world's block (its solution is 0).
+Vectors are ``(k, n)`` vec3d as in ``pcg.py``, but for the directions ``P`` and ``Z``, which may
+be vec3f (:data:`DIRECTIONS`); the ``k x k`` matrices of world ``w`` live in ``gram[w, slot]`` and
+``coef[w, slot]`` (float64), and every sum and product is taken in float64. A world's columns run
+until all of them reach the tolerance; a column with ``b = 0`` is left out of its world's block (its solution is 0).
 The small solves go through a Cholesky factor of the Gram matrix scaled to a unit diagonal,
 pivoting out the directions that depend on the others (:data:`DEPENDENT`): two equal right-hand
 sides then share one direction instead of breaking the factorization.
@@ -39,6 +40,12 @@ BETA = wp.constant(1)  # coef[w, BETA]
 # with 1e-6; with 1e-4 they take 2-9 iterations a step (float64 with 1e-12: 1-12)
 # (tests/test_block_pcg.py)
 DEPENDENT = {"float64": 1e-12, "float32": 1e-4}
+# the storage of the directions P and Z: float32 halves their bytes and costs no accuracy when the
+# preconditioner works in float32 anyway. X and R stay float64, and A P is the float64 product of
+# the P stored, so X moves by P alpha and R by A P alpha with the same P: R stays the residual of X
+# (the rounding of P only perturbs the directions' conjugacy, by ~1e-7, as the float32
+# preconditioner perturbs Z). A P stored in float32 would not: R would drift from b - A X.
+DIRECTIONS = {"float64": wp.vec3d, "float32": wp.vec3f}
 
 
 @wp.func
@@ -56,8 +63,9 @@ def running(wdone: wp.array(dtype=wp.int32), w: int) -> bool:
 _grams = {}
 
 
-def gram_kernel(columns: int):
-    """``out[w, slot, a, b] += sum_i u[a, i] . (mask v[b, i])`` over the pairs ``a <= b`` of
+def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d):
+    """``out[w, slot, a, b] += sum_i u[a, i] . (mask v[b, i])`` (``u``, ``v`` of ``u_vector`` and
+    ``v_vector``, summed in float64) over the pairs ``a <= b`` of
     the ``k = columns`` columns (:func:`load` mirrors the other half), in the running worlds,
     between live columns. A block of threads per world (:func:`launch_worlds`, ``world_start``
     its first node, ``(worlds + 1,)``): each thread reads its nodes' ``2 k`` vectors once and adds
@@ -66,16 +74,17 @@ def gram_kernel(columns: int):
     395 us a Gram matrix, the step's mean; 178-210 with a thread a node over blocks of 256 nodes,
     which summed their 15 products 6 times a world; 63 us now). A converged world's block returns
     at once.
-    Cached per ``k`` (a compile-time constant: the sums live in registers)."""
-    if columns in _grams:
-        return _grams[columns]
+    Cached per ``k`` (a compile-time constant: the sums live in registers) and vector types."""
+    key = (columns, u_vector, v_vector)
+    if key in _grams:
+        return _grams[key]
     K = columns
     P = K * (K + 1) // 2
     Sums = wp.types.vector(length=P, dtype=wp.float64)
     Vs = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
 
     @wp.kernel(module="unique")
-    def gram_pairs(u: wp.array2d(dtype=wp.vec3d), v: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d),
+    def gram_pairs(u: wp.array2d(dtype=u_vector), v: wp.array2d(dtype=v_vector), mask: wp.array(dtype=wp.vec3d),
                    world_start: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
                    wdone: wp.array(dtype=wp.int32), slot: int, out: wp.array4d(dtype=wp.float64)):
         w, lane = wp.tid()
@@ -87,7 +96,7 @@ def gram_kernel(columns: int):
                 vs = Vs()
                 for b in range(K):
                     if live(scal, b, w):
-                        vb = wp.cw_mul(m, v[b, i])
+                        vb = wp.cw_mul(m, wp.vec3d(v[b, i]))
                         vs[b, 0] = vb[0]
                         vs[b, 1] = vb[1]
                         vs[b, 2] = vb[2]
@@ -95,7 +104,7 @@ def gram_kernel(columns: int):
                 for a in range(K):
                     ua = wp.vec3d()
                     if live(scal, a, w):
-                        ua = u[a, i]
+                        ua = wp.vec3d(u[a, i])
                     for b in range(a, K):
                         s[q] = s[q] + ua[0] * vs[b, 0] + ua[1] * vs[b, 1] + ua[2] * vs[b, 2]
                         q += 1
@@ -108,28 +117,30 @@ def gram_kernel(columns: int):
                         out[w, slot, a, b] = out[w, slot, a, b] + total[0]
                     q += 1
 
-    _grams[columns] = gram_pairs
+    _grams[key] = gram_pairs
     return gram_pairs
 
 
 _updates = {}
 
 
-def block_update_kernel(columns: int):
+def block_update_kernel(columns: int, vector=wp.vec3d):
     """``x[a] += sum_b p[b] alpha[b, a]``, ``r[a] -= P(sum_b A p[b] alpha[b, a])`` (``P`` the
     projection on the free DOFs) for the live columns ``a`` of the running worlds; accumulates
     ``r.r`` into ``scal[a, w, R2]``. A block of threads per world (:func:`launch_worlds`), each
     thread reading its nodes' ``2 k`` vectors of ``p`` and ``A p`` once (a thread per column and
     node read them ``k`` times: on the H200, 1024 Diamonds' 5 columns, 431 us a launch; 304-360
-    with a thread a node over blocks of 256 nodes; 240 now). Cached per ``k = columns``."""
-    if columns in _updates:
-        return _updates[columns]
+    with a thread a node over blocks of 256 nodes; 240 now). ``p`` holds ``vector`` (vec3d or vec3f),
+    the rest vec3d. Cached per ``k = columns`` and ``vector``."""
+    key = (columns, vector)
+    if key in _updates:
+        return _updates[key]
     K = columns
     Vs = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
     Rs = wp.types.vector(length=K, dtype=wp.float64)
 
     @wp.kernel(module="unique")
-    def block_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d),
+    def block_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=vector),
                      ap: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d),
                      world_start: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
                      wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64)):
@@ -141,7 +152,7 @@ def block_update_kernel(columns: int):
                 ps = Vs()
                 aps = Vs()
                 for b in range(K):
-                    pb = p[b, i]
+                    pb = wp.vec3d(p[b, i])
                     apb = ap[b, i]
                     for c in range(3):
                         ps[b, c] = pb[c]
@@ -166,26 +177,28 @@ def block_update_kernel(columns: int):
                 if lane == 0:
                     scal[a, w, R2] = scal[a, w, R2] + total[0]
 
-    _updates[columns] = block_update
+    _updates[key] = block_update
     return block_update
 
 
 _directions = {}
 
 
-def block_direction_kernel(columns: int):
+def block_direction_kernel(columns: int, vector=wp.vec3d):
     """``p[a] = z[a] + sum_b p[b] beta[b, a]``: the new directions of the live columns of the
     running worlds, a thread per node, which holds its node's old ``p`` while it writes the new
     one (a thread per column and node made them in ``z``, read ``p`` ``k`` times, and a second
     kernel copied them to ``p``: 1024 Diamonds on the H200, 64 us a launch against 137 + 62).
-    Launched over the nodes; cached per ``k = columns``."""
-    if columns in _directions:
-        return _directions[columns]
+    ``z`` and ``p`` hold ``vector`` (vec3d or vec3f; the sums are float64). Launched over the nodes;
+    cached per ``k = columns`` and ``vector``."""
+    key = (columns, vector)
+    if key in _directions:
+        return _directions[key]
     K = columns
     Vs = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
 
     @wp.kernel(module="unique")
-    def block_direction(z: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=wp.vec3d),
+    def block_direction(z: wp.array2d(dtype=vector), p: wp.array2d(dtype=vector),
                         world: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
                         wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64)):
         i = wp.tid()
@@ -194,20 +207,45 @@ def block_direction_kernel(columns: int):
             return
         old = Vs()
         for b in range(K):
-            pb = p[b, i]
+            pb = wp.vec3d(p[b, i])
             for c in range(3):
                 old[b, c] = pb[c]
         for a in range(K):
             if live(scal, a, w):
-                new = z[a, i]
+                new = wp.vec3d(z[a, i])
                 for b in range(K):
                     beta = coef[w, BETA, b, a]
                     if beta != wp.float64(0.0):
                         new += beta * wp.vec3d(old[b, 0], old[b, 1], old[b, 2])
-                p[a, i] = new
+                p[a, i] = vector(new)
 
-    _directions[columns] = block_direction
+    _directions[key] = block_direction
     return block_direction
+
+
+_begins = {}
+
+
+def block_begin_kernel(vector=wp.vec3d):
+    """``p = z`` (``z`` and ``p`` of ``vector``), a thread per column and node; a column with
+    ``b = 0`` (``scal[c, w, B2] = 0``) has the solution 0, whatever its warm start: its ``x``, ``r``
+    and ``p`` are cleared, so that it stays 0. Cached per ``vector``."""
+    if vector in _begins:
+        return _begins[vector]
+
+    @wp.kernel(module="unique")
+    def block_begin(r: wp.array2d(dtype=wp.vec3d), z: wp.array2d(dtype=vector), x: wp.array2d(dtype=wp.vec3d),
+                    p: wp.array2d(dtype=vector), world: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64)):
+        c, i = wp.tid()
+        if scal[c, world[i], B2] == wp.float64(0.0):
+            x[c, i] = wp.vec3d()
+            r[c, i] = wp.vec3d()
+            p[c, i] = vector()
+        else:
+            p[c, i] = z[c, i]
+
+    _begins[vector] = block_begin
+    return block_begin
 
 
 _small = {}

@@ -23,22 +23,23 @@ from .cg import DONE
 _kernels = {}
 
 
-def rotate_in_scaled(dtype, columns: int):
+def rotate_in_scaled(dtype, columns: int, frame=wp.mat33d):
     """``rotate_in(r, q_rot, mask, node_world, place, inv_scale, scal, u)``, a thread per node:
     ``u[place[3 i + a], c] = (inv_scale[w] Q_i^T r[c, i])_a`` for the ``k = columns`` columns of
     each free DOF ``3 i + a`` (``place``: its row among the operands, in its factor's order; -1
     for a fixed DOF, which the factor does not hold), in precision ``dtype`` (world ``w``'s system
     is ``s_w`` times its factor's: ``(s_w A)^-1 = A^-1 / s_w``). A thread writes each of its DOFs'
     ``k`` numbers side by side and reads its rotation once. A world whose columns all converged is
-    skipped, as the levels skip it."""
-    key = ("rotate_in", dtype, columns)
+    skipped, as the levels skip it. ``q_rot`` holds ``frame`` (mat33d, or mat33f: the rotations in
+    the precision of the factors, which costs them nothing, the same ``Q`` rotating in and out)."""
+    key = ("rotate_in", dtype, columns, frame)
     if key in _kernels:
         return _kernels[key]
     K = columns
     running, _ = _row_funcs(columns, dtype)
 
     @wp.kernel(module="unique")
-    def factor_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
+    def factor_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=frame),
                          mask: wp.array(dtype=wp.vec3d), node_world: wp.array(dtype=wp.int32),
                          place: wp.array(dtype=wp.int32), inv_scale: wp.array(dtype=dtype),
                          scal: wp.array3d(dtype=wp.float64), u: wp.array2d(dtype=dtype)):
@@ -46,7 +47,7 @@ def rotate_in_scaled(dtype, columns: int):
         w = node_world[i]
         if not running(scal, w):
             return
-        qt = wp.transpose(q_rot[i])
+        qt = wp.transpose(wp.mat33d(q_rot[i]))
         m = wp.float64(inv_scale[w]) * mask[i]
         rows = wp.vec3i(place[3 * i], place[3 * i + 1], place[3 * i + 2])
         for c in range(K):
@@ -59,26 +60,27 @@ def rotate_in_scaled(dtype, columns: int):
     return factor_rotate_in
 
 
-def rotate_out(dtype, columns: int):
+def rotate_out(dtype, columns: int, vector=wp.vec3d, frame=wp.mat33d):
     """``rotate_out(x, q_rot, mask, node_world, place, scal, z)``, a thread per node: ``z[c, i] =
     mask_i Q_i x_i[c]`` for the ``k = columns`` columns, ``x_i[c]`` the node's three DOFs' numbers
     at their rows ``place`` (0 for a fixed one); it reads its rotation once. A world whose columns
-    all converged is skipped (its ``z`` is no longer read)."""
-    key = ("rotate_out", dtype, columns)
+    all converged is skipped (its ``z`` is no longer read). ``z`` holds ``vector`` (vec3d, or vec3f:
+    the block CG's directions in single precision), ``q_rot`` ``frame`` (as :func:`rotate_in_scaled`)."""
+    key = ("rotate_out", dtype, columns, vector, frame)
     if key in _kernels:
         return _kernels[key]
     K = columns
     running, _ = _row_funcs(columns, dtype)
 
     @wp.kernel(module="unique")
-    def factor_rotate_out(x: wp.array2d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
+    def factor_rotate_out(x: wp.array2d(dtype=dtype), q_rot: wp.array(dtype=frame),
                           mask: wp.array(dtype=wp.vec3d), node_world: wp.array(dtype=wp.int32),
                           place: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
-                          z: wp.array2d(dtype=wp.vec3d)):
+                          z: wp.array2d(dtype=vector)):
         i = wp.tid()
         if not running(scal, node_world[i]):
             return
-        q = q_rot[i]
+        q = wp.mat33d(q_rot[i])
         m = mask[i]
         rows = wp.vec3i(place[3 * i], place[3 * i + 1], place[3 * i + 2])
         for c in range(K):
@@ -86,7 +88,7 @@ def rotate_out(dtype, columns: int):
             for a in range(3):
                 if rows[a] >= 0:
                     v[a] = wp.float64(x[rows[a], c])
-            z[c, i] = wp.cw_mul(m, q * v)
+            z[c, i] = vector(wp.cw_mul(m, q * v))
 
     _kernels[key] = factor_rotate_out
     return factor_rotate_out

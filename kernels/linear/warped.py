@@ -51,18 +51,26 @@ def gather_node_rotations(
     node_sum[i] = node_sum[i] + acc
 
 
-@wp.kernel
-def relative_node_rotations(
-    node_sum: wp.array(dtype=wp.mat33d),
-    frame: wp.array(dtype=wp.mat33d),
-    node_rot: wp.array(dtype=wp.mat33d),
-    q_rot: wp.array(dtype=wp.mat33d),
-):
-    """``R_i = polar(node_sum[i])`` and ``Q_i = R_i R_f,i^T`` (``frame`` holds ``R_f``)."""
-    i = wp.tid()
-    R = polar_rotation(node_sum[i])
-    node_rot[i] = R
-    q_rot[i] = R * wp.transpose(frame[i])
+_relative = {}
+
+
+def relative_node_rotations(kind=wp.mat33d):
+    """``relative(node_sum, frame, node_rot, q_rot)``, a thread per node: ``R_i = polar(node_sum[i])``
+    and ``Q_i = R_i R_f,i^T`` (``frame`` holds ``R_f``), ``q_rot`` of ``kind`` (mat33d, or mat33f for
+    a preconditioner that works in float32). Cached per ``kind``."""
+    if kind in _relative:
+        return _relative[kind]
+
+    @wp.kernel(module="unique")
+    def relative(node_sum: wp.array(dtype=wp.mat33d), frame: wp.array(dtype=wp.mat33d),
+                 node_rot: wp.array(dtype=wp.mat33d), q_rot: wp.array(dtype=kind)):
+        i = wp.tid()
+        R = polar_rotation(node_sum[i])
+        node_rot[i] = R
+        q_rot[i] = kind(R * wp.transpose(frame[i]))
+
+    _relative[kind] = relative
+    return relative
 
 
 @wp.kernel

@@ -39,7 +39,7 @@ def choose(name: str, device) -> str:
 def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: float = 1e-6,
                 max_iterations: int = 2000, graphs: bool = True, check_every: int | None = None,
                 factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
-                share_tolerance: float = 1e-10, block: bool = True):
+                share_tolerance: float = 1e-10, block: bool = True, directions: str = "auto"):
     """A solver for ``columns`` right-hand sides: ``name`` from :data:`SOLVERS` (``auto`` resolved
     by :func:`choose`). ``check_every`` is v1's residual read-back period (``jacobi`` only);
     ``factorization`` is the direct solver's; ``preconditioner`` ("auto", "host", "dense", "blocks",
@@ -48,7 +48,7 @@ def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: fl
     world to :class:`WarpedFactor` (dense on CUDA up to its limit, else host); "factors" keeps a
     sparse factor per world instead (:class:`WorldFactors`). ``share_tolerance``: when
     worlds share a block (:class:`WorldBlocks`). ``block``: ``pcg`` solves a world's columns as one
-    block (:class:`PCG`)."""
+    block (:class:`PCG`), its directions stored as ``directions`` says."""
     name = choose(name, operator.model.device)
     if name == "direct":
         return SparseDirect(operator, factorization)
@@ -66,7 +66,7 @@ def make_solver(name: str, operator: SystemOperator, columns: int, tolerance: fl
         warp_pre = WorldBlocks(operator, columns, precision, share_tolerance=share_tolerance)
     else:
         warp_pre = WarpedFactor(operator, columns, preconditioner, precision)
-    return PCG(operator, warp_pre, columns, tolerance, max_iterations, graphs, block)
+    return PCG(operator, warp_pre, columns, tolerance, max_iterations, graphs, block, directions)
 
 
 __all__ = ["PCG", "SOLVERS", "BlockJacobi", "BlockJacobiCG", "SolveResult", "SparseDirect", "SystemOperator",

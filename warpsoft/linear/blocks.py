@@ -60,8 +60,8 @@ class WorldGroups(WarpedFrames):
     """
 
     def __init__(self, operator: SystemOperator, columns: int, refresh_ratio: float, refresh_floor: int,
-                 share: bool, share_tolerance: float):
-        super().__init__(operator, refresh_ratio, refresh_floor)
+                 share: bool, share_tolerance: float, frame_kind=wp.mat33d):
+        super().__init__(operator, refresh_ratio, refresh_floor, frame_kind)
         m = operator.model
         if operator.elastic.kinds != ["corotational"]:
             quad = next(b for b in m.bodies if b.element != "corotational")

@@ -108,7 +108,8 @@ class WorldFactors(WorldGroups):
     """Args:
         operator: the system (rotations, scales, model).
         columns: right-hand sides ``k`` of the solves it serves.
-        precision: "float32" or "float64", of the factors' entries and the solves (the CG runs in float64).
+        precision: "float32" or "float64", of the factors' entries, the solves and the frame ``q_rot``
+            (the CG runs in float64; with float32, ``apply`` may write a vec3f ``z``: ``single_output``).
         refresh_ratio, refresh_floor: when to refactorize, as :class:`~warpsoft.linear.warped.WarpedFactor`'s.
         share, share_tolerance: which worlds share a factor, as
             :class:`~warpsoft.linear.blocks.WorldBlocks`'.
@@ -148,9 +149,13 @@ class WorldFactors(WorldGroups):
         self.layout = LAYOUT if layout is None else layout
         if self.layout not in ("rows", "panels"):
             raise ValueError(f"WorldFactors: layout must be 'rows' or 'panels', got {layout!r}")
-        super().__init__(operator, columns, refresh_ratio, refresh_floor, share, share_tolerance)
-        m, d = operator.model, operator.model.device
         self.dtype = wp.float64 if precision == "float64" else wp.float32
+        # (the rotations in the factors' precision: a float32 factor's P^-1 loses nothing by them)
+        super().__init__(operator, columns, refresh_ratio, refresh_floor, share, share_tolerance,
+                         wp.mat33f if self.dtype == wp.float32 else wp.mat33d)
+        m, d = operator.model, operator.model.device
+        # a float32 P^-1 may hand z over in float32 (the block CG's directions in single precision)
+        self.single_output = self.dtype == wp.float32
         # a panel's lane loads PANEL_UNROLL columns at a time on CUDA (H200: 3.97 -> 3.45 ms from 2 to 4),
         # one on the CPU (4 Diamonds on the VM: P^-1 3.95 -> 2.98 and 3.69 -> 3.60 ms from 4 to 1)
         self.panel_rows, self.panel_spread = PANEL_ROWS, PANEL_SPREAD
@@ -391,11 +396,13 @@ class WorldFactors(WorldGroups):
             self.panel_height = max(int(p[k].height.max(initial=1)) for p in programs for k in range(2))
 
     def apply(self, r: wp.array, z: wp.array) -> None:
-        """``z = Q blockdiag(s_w^-1 A_b^-1) Q^T r`` for ``(k, n)`` vec3d arrays, ``k <= columns``;
-        fixed DOFs 0."""
+        """``z = Q blockdiag(s_w^-1 A_b^-1) Q^T r`` for ``(k, n)`` arrays, ``k <= columns``: ``r`` vec3d,
+        ``z`` vec3d (or vec3f, with ``single_output``); fixed DOFs 0."""
         m, d = self.op.model, self.op.model.device
         k = r.shape[0]
-        launch(kernels.rotate_in_scaled(self.dtype, k), m.num_nodes,
+        if z.dtype != wp.vec3d and not self.single_output:
+            raise ValueError(f"WorldFactors: a float64 P^-1 writes vec3d, got a {z.dtype.__name__} z")
+        launch(kernels.rotate_in_scaled(self.dtype, k, self.q_rot.dtype), m.num_nodes,
                inputs=[r, self.q_rot, m.mask, m.node_world, self.place, self.inv_scale, self._done], outputs=[self.u],
                device=d)
         lanes = max([self.lanes, *(self._short_lanes(t) for t in [0, *self.tiers])])
@@ -415,7 +422,7 @@ class WorldFactors(WorldGroups):
             wp.capture_if(self.branch[n + 1:], self._levels, k=k, tier=0, check=not self.unchecked_full)
         else:
             self._levels(k, 0)
-        launch(kernels.rotate_out(self.dtype, k), m.num_nodes,
+        launch(kernels.rotate_out(self.dtype, k, z.dtype, self.q_rot.dtype), m.num_nodes,
                inputs=[self.x, self.q_rot, m.mask, m.node_world, self.place, self._done], outputs=[z], device=d)
 
     def _short_lanes(self, tier: int) -> int:

@@ -48,13 +48,17 @@ class SystemOperator:
             self.blocks.refresh(self.rot)
 
     def apply(self, x: wp.array, y: wp.array, done: wp.array | None = None) -> None:
-        """``y = A x``. ``done``: a solver's CG scalars ``(k, worlds, slots)``; the columns of the
-        worlds they mark converged are skipped and keep what ``y`` held (a converged world stops
-        costing work)."""
+        """``y = A x`` for ``(k, n)`` columns: ``y`` vec3d, ``x`` vec3d (or vec3f with the assembled
+        blocks). ``done``: a solver's CG scalars ``(k, worlds, slots)``; the columns of the worlds
+        they mark converged are skipped and keep what ``y`` held (a converged world stops costing
+        work)."""
         m = self.model
         if self.blocks is not None:
             self.blocks.apply(x, y, self.mass_scale, self.stiffness_scale, done)
             return
+        if x.dtype != wp.vec3d:
+            raise ValueError(f"SystemOperator: the matrix-free product takes vec3d columns, got {x.dtype.__name__}; "
+                             "single-precision columns need the assembled operator")
         if self.mass_scale != 0.0:
             launch(linalg.mass_product, x.shape, inputs=[x, m.mass, self.mass_scale, m.node_world, done],
                    outputs=[y], device=m.device)
@@ -116,10 +120,10 @@ class AssembledBlocks:
 
     def apply(self, x: wp.array, y: wp.array, mass_scale: float, stiffness_scale: float,
               done: wp.array | None = None) -> None:
-        """``y[c] = mass_scale M x[c] + stiffness_scale K x[c]`` for ``(k, n)`` vec3d ``x``, ``y``;
-        the converged columns of ``done``'s worlds keep what ``y`` held."""
+        """``y[c] = mass_scale M x[c] + stiffness_scale K x[c]`` for ``(k, n)`` ``x`` (vec3d or vec3f)
+        and ``y`` (vec3d); the converged columns of ``done``'s worlds keep what ``y`` held."""
         m = self.model
         mass = m.mass if mass_scale != 0.0 else self.no_mass
-        launch(assembled_kernels.block_product(x.shape[0]), m.num_nodes,
+        launch(assembled_kernels.block_product(x.shape[0], x.dtype), m.num_nodes,
                inputs=[x, self.row_start, self.column, self.values, stiffness_scale, mass, mass_scale, m.node_world,
                        done], outputs=[y], device=m.device)

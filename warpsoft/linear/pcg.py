@@ -62,10 +62,18 @@ class PCG:
             ``kernels/linear/block_pcg.py``) when there are at most ``MAX_COLUMNS`` of them and
             all are solved (not bounded); each column then stops with its world, when all of
             the world's columns reached the tolerance. False: each column its own CG.
+        directions: the block CG's storage of its directions ``P`` and ``Z = P^-1 R``: "float64",
+            "float32" (half their bytes; ``X``, ``R`` and ``A P`` stay float64, so ``R`` stays the
+            residual of ``X``: ``kernels/linear/block_pcg.py``) or "auto": float32 where the
+            preconditioner works in float32 anyway and can write it (``single_output``) and the
+            operator takes it (its assembled blocks), else float64. Without the block CG: float64.
+
+    Attributes: ``bp``, ``bz`` the block CG's ``P`` and ``Z`` (``(k, n)``, vec3d or vec3f), the
+    column CG's ``p`` and ``z`` (vec3d) where they are vec3d.
     """
 
     def __init__(self, operator: SystemOperator, preconditioner, columns: int, tolerance: float = 1e-6,
-                 max_iterations: int = 2000, graph: bool = True, block: bool = True):
+                 max_iterations: int = 2000, graph: bool = True, block: bool = True, directions: str = "auto"):
         m = operator.model
         self.op, self.precond = operator, preconditioner
         self.tolerance, self.max_iterations = float(tolerance), int(max_iterations)
@@ -98,6 +106,22 @@ class PCG:
             # (:data:`~warpsoft.kernels.linear.block_pcg.DEPENDENT`)
             single = getattr(preconditioner, "dtype", wp.float64) == wp.float32
             self.dependent = blockk.DEPENDENT["float32" if single else "float64"]
+        self.directions = self._directions(directions, operator, preconditioner)
+        self.bp, self.bz = self.p, self.z
+        if self.directions == "float32":
+            self.bp, self.bz = (wp.zeros(shape, dtype=wp.vec3f, device=m.device) for _ in range(2))
+
+    def _directions(self, directions: str, operator: SystemOperator, preconditioner) -> str:
+        """The block CG's storage of ``P`` and ``Z`` for ``directions`` ("auto", "float64", "float32")."""
+        if directions not in ("auto", *blockk.DIRECTIONS):
+            raise ValueError(f"PCG: directions must be 'auto', 'float64' or 'float32', got {directions!r}")
+        if not self.block:  # (no block directions to store: the column CG's are float64)
+            return "float64"
+        can = getattr(preconditioner, "single_output", False) and getattr(operator, "blocks", None) is not None
+        if directions == "float32" and not can:
+            raise ValueError("PCG: directions='float32' needs a float32 preconditioner that writes it "
+                             "(preconditioner='factors', precision='float32') and the assembled operator")
+        return "float32" if can and directions != "float64" else "float64"
 
     def bound(self, count: wp.array, offset: int = 0) -> None:
         """Solve only the right-hand sides ``c < offset + count[0]`` (``count`` an int32 device array
@@ -224,9 +248,10 @@ class PCG:
         self.gram.zero_()
         kernels.launch_nodes(kernels.pcg_residual, k, n, [b, self.ap, m.mask, self.r, m.node_world, self.scal], d)
         self._block_scalars(0)  # (the worlds held, the columns left out)
-        self.precond.apply(self.r, self.z)
-        kernels.launch_nodes(kernels.pcg_begin, k, n, [self.r, self.z, x, self.p, m.node_world, self.scal], d)
-        self._gram(self.r, self.z, blockk.G_RZ)
+        self.precond.apply(self.r, self.bz)
+        launch(blockk.block_begin_kernel(self.bz.dtype), (k, n), inputs=[self.r, self.bz, x, self.bp, m.node_world,
+                                                                          self.scal], device=d)
+        self._gram(self.r, self.bz, blockk.G_RZ)
         wp.capture_while(self.active, self._block_iteration, x=x)
 
     def _block_iteration(self, x: wp.array) -> None:
@@ -234,22 +259,22 @@ class PCG:
         ``R^T Z``, ``beta`` and the stop test, ``P``."""
         m, d = self.op.model, self.op.model.device
         k, n = x.shape
-        self.op.apply(self.p, self.ap, self.scal)  # the worlds done are skipped, here and below
-        self._gram(self.p, self.ap, blockk.G_PAP)
+        p, z = self.bp, self.bz
+        self.op.apply(p, self.ap, self.scal)  # the worlds done are skipped, here and below
+        self._gram(p, self.ap, blockk.G_PAP)
         launch(blockk.small_kernels(k)[0], m.num_worlds, inputs=[self.gram, self.wdone, self.dependent],
                outputs=[self.coef, self.active], device=d)
-        blockk.launch_worlds(blockk.block_update_kernel(k), m.num_worlds, [x, self.r, self.p, self.ap, m.mask,
-                                                                          self.world_start, self.scal, self.wdone,
-                                                                          self.coef], d)
-        self.precond.apply(self.r, self.z)
-        self._gram(self.r, self.z, blockk.G_RZ_NEW)
+        blockk.launch_worlds(blockk.block_update_kernel(k, p.dtype), m.num_worlds,
+                             [x, self.r, p, self.ap, m.mask, self.world_start, self.scal, self.wdone, self.coef], d)
+        self.precond.apply(self.r, z)
+        self._gram(self.r, z, blockk.G_RZ_NEW)
         self._block_scalars(1)
-        launch(blockk.block_direction_kernel(k), n, inputs=[self.z, self.p, m.node_world, self.scal, self.wdone,
-                                                            self.coef], device=d)
+        launch(blockk.block_direction_kernel(k, p.dtype), n, inputs=[z, p, m.node_world, self.scal, self.wdone,
+                                                                     self.coef], device=d)
 
     def _gram(self, u: wp.array, v: wp.array, slot: int) -> None:
         m = self.op.model
-        blockk.launch_worlds(blockk.gram_kernel(u.shape[0]), m.num_worlds,
+        blockk.launch_worlds(blockk.gram_kernel(u.shape[0], u.dtype, v.dtype), m.num_worlds,
                              [u, v, m.mask, self.world_start, self.scal, self.wdone, slot, self.gram], m.device)
 
     def _block_scalars(self, advance: int) -> None:
