@@ -86,25 +86,38 @@ def three_elements(stiffness: float = 1.0, static: bool = False) -> ws.Scene:
 def test_the_assembled_operator_applies_every_element_model_as_the_matrix_free_one(static):
     """The 3x3 node blocks gathered from the element models' blocks (linear and 10-node tets,
     corotational and Neo-Hookean, in two worlds of different stiffness) give the element kernels'
-    ``A x`` at a sagged state, for one column and five; the stored matrix is symmetric."""
+    ``A x`` at a sagged state, for one column and five, whatever the rows a chunk (1, the CPU's;
+    4; 32, CUDA's: the padding adds nothing), and for float32 columns the product of their values
+    in float64; the stored matrix is symmetric."""
     sim = ws.Simulator([three_elements(1.0, static), three_elements(3.0, static)], solver="pcg",
                        preconditioner="host", operator="assembled")
     for _ in range(3):
         sim.step()
-    blocks = sim.operator.blocks
-    assert blocks is not None and len(sim.elastic.groups) == 3
+    own = sim.operator.blocks
+    assert own is not None and own.chunk_rows == 1 and len(sim.elastic.groups) == 3
     x = np.random.default_rng(5).standard_normal((5, sim.model.num_nodes, 3))
-    for k in (1, 5):
-        xw = wp.array(x[:k], dtype=wp.vec3d)
-        assembled, free = wp.zeros_like(xw), wp.zeros_like(xw)
-        sim.operator.apply(xw, assembled)
-        sim.operator.blocks = None  # the same operator, element by element
-        sim.operator.apply(xw, free)
-        sim.operator.blocks = blocks
-        expect = free.numpy()
-        assert np.abs(assembled.numpy() - expect).max() < 1e-12 * np.abs(expect).max(), k
-    rows = np.repeat(np.arange(sim.model.num_nodes), np.diff(blocks.row_start.numpy()))
-    cols, values = blocks.column.numpy(), blocks.values.numpy()
+    single = x.astype(np.float32)
+    for chunk_rows in (1, 4, 32):
+        blocks = AssembledBlocks(sim.model, sim.elastic, chunk_rows=chunk_rows)
+        blocks.refresh(sim.rot)
+        assert (blocks.num_slots > blocks.filled) == (chunk_rows > 1) and blocks.filled == own.filled
+        for k in (1, 5):
+            for columns, dtype in ((x, wp.vec3d), (single, wp.vec3f)):
+                xw = wp.array(columns[:k], dtype=dtype)
+                assembled = wp.zeros(xw.shape, dtype=wp.vec3d)
+                sim.operator.blocks = blocks
+                sim.operator.apply(xw, assembled)
+                sim.operator.blocks = None  # the same operator, element by element, on the same numbers
+                free = wp.zeros_like(assembled)
+                sim.operator.apply(wp.array(columns[:k].astype(np.float64), dtype=wp.vec3d), free)
+                expect = free.numpy()
+                assert np.abs(assembled.numpy() - expect).max() < 1e-12 * np.abs(expect).max(), (chunk_rows, k)
+        assert all(np.array_equal(a, b) for a, b in zip(blocks.by_rows(), own.by_rows(), strict=True))
+    sim.operator.blocks = own
+    with pytest.raises(ValueError, match="matrix-free product takes vec3d"):
+        sim.operator.blocks = None
+        sim.operator.apply(wp.array(single, dtype=wp.vec3f), wp.zeros(x.shape[:2], dtype=wp.vec3d))
+    rows, cols, values = own.by_rows()
     slot = {(int(i), int(j)): s for s, (i, j) in enumerate(zip(rows, cols, strict=True))}
     transposed = values[[slot[(int(j), int(i))] for i, j in zip(rows, cols, strict=True)]].transpose(0, 2, 1)
     assert np.abs(values - transposed).max() < 1e-12 * np.abs(values).max()

@@ -17,6 +17,9 @@ OPERATORS = ("auto", "matrix_free", "assembled")
 # "auto" assembles the blocks on CUDA from this many elements (a batch of designs): there the
 # matrix-free product's atomic additions bind it (measured on an H200, docs/performance.md)
 ASSEMBLED_FROM = 1 << 16
+# the assembled blocks' rows a chunk on CUDA (a warp's threads; kernels/linear/assembled.py); 1 on
+# the CPU, whose one thread walks the rows one after another and would only read the padding
+CHUNK_ROWS = 32
 
 
 class SystemOperator:
@@ -69,22 +72,47 @@ class SystemOperator:
         self.elastic.apply(x, y, self.rot, self.stiffness_scale, done)
 
 
-class AssembledBlocks:
-    """``K`` as 3x3 blocks (N/m) compressed by node rows, both triangles: ``row_start`` ``(n + 1,)``,
-    ``column`` and ``values`` ``(slots,)``. The slots are the node pairs that share an element;
-    each sums the element blocks listed for it (``slot_start`` ``(slots + 1,)``, ``contributions``
-    ``(element blocks,)``: indexes into the element models' blocks, :meth:`Elements.blocks`).
-    A refresh sums them into the slots. ``fused``: a thread per slot forms its element blocks
-    (where the element model can: one corotational group); else, or with ``fused=False``, the
-    element blocks are written first (``element_blocks``, ``(element blocks,)`` mat33d) and
-    gathered. None: fused on CUDA (H200, 1024 Diamonds: 3.33 ms against 13.42), written on the
-    CPU (two Diamonds on one thread: 2.1 ms fused, 0.76 written). A product reads each slot
-    once for all its columns. Device memory: 4 bytes an element block (76 where they are
-    written), 80 a slot (a Diamond: 16 element blocks an element, about 10 slots a node)."""
+def chunked(rows: np.ndarray, cols: np.ndarray, n: int,
+            chunk_rows: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The sliced layout of the slots ``(rows, cols)`` (``(slots,)`` each, sorted by row) of ``n``
+    rows, in chunks of ``chunk_rows`` rows: ``place`` ``(slots,)`` each slot's place, ``column``
+    ``(places,)`` (a padding place: its lane's row, the last row past the end), ``chunk_start`` and
+    ``chunk_slots`` ``(chunks,)``: a chunk's first place over ``chunk_rows`` and its rows' slots."""
+    c = int(chunk_rows)
+    row_start = np.searchsorted(rows, np.arange(n + 1))
+    length = np.zeros(-(-n // c) * c, dtype=np.int64)
+    length[:n] = np.diff(row_start)
+    chunk_slots = length.reshape(-1, c).max(axis=1)
+    chunk_start = np.concatenate([[0], np.cumsum(chunk_slots)[:-1]])
+    nth = np.arange(len(rows)) - row_start[rows]  # a slot's rank in its row
+    place = (chunk_start[rows // c] + nth) * c + rows % c
+    places = int(chunk_slots.sum()) * c
+    lane_row = np.repeat(np.arange(len(chunk_slots)) * c, chunk_slots * c) + np.arange(places) % c
+    column = np.minimum(lane_row, n - 1)
+    column[place] = cols
+    return place, column.astype(np.int32), chunk_start.astype(np.int32), chunk_slots.astype(np.int32)
 
-    def __init__(self, model: Model, elastic, fused: bool | None = None):
+
+class AssembledBlocks:
+    """``K`` as 3x3 blocks (N/m) by node rows, both triangles, in chunks of ``chunk_rows`` rows
+    (sliced ELLPACK: ``kernels/linear/assembled.py``; :data:`CHUNK_ROWS` on CUDA, 1 on the CPU):
+    ``chunk_start`` and ``chunk_slots`` ``(chunks,)``, ``column`` and ``values`` ``(slots,)``, the
+    padding included (a zero block at the row's own column). The slots are the node pairs that
+    share an element; each sums the element blocks listed for it (``slot_start`` ``(slots + 1,)``,
+    ``contributions`` ``(element blocks,)``: indexes into the element models' blocks,
+    :meth:`Elements.blocks`; none for a padding slot). A refresh sums them into the slots.
+    ``fused``: a thread per slot forms its element blocks (where the element model can: one
+    corotational group); else, or with ``fused=False``, the element blocks are written first
+    (``element_blocks``, ``(element blocks,)`` mat33d) and gathered. None: fused on CUDA (H200, 1024
+    Diamonds: 3.33 ms against 13.42), written on the CPU (two Diamonds on one thread: 2.1 ms fused,
+    0.76 written). A product reads each slot once for all its columns. Device memory: 4 bytes an
+    element block (76 where they are written), 80 a slot (a Diamond: 16 element blocks an element,
+    about 10.5 slots a node, 1.31 times as many with the padding of chunks of 32 rows)."""
+
+    def __init__(self, model: Model, elastic, fused: bool | None = None, chunk_rows: int | None = None):
         self.model, self.elastic = model, elastic
         n, d = model.num_nodes, model.device
+        self.chunk_rows = int(chunk_rows or (CHUNK_ROWS if d.is_cuda else 1))
         pairs = elastic.block_nodes()  # (element blocks, 2): the nodes each element block couples
         if len(pairs) >= 2 ** 31:
             raise ValueError(f"AssembledBlocks: {len(pairs)} element blocks pass the 2^31 a Warp index holds; "
@@ -94,11 +122,24 @@ class AssembledBlocks:
         ordered = key[order]
         first = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1]]))  # each slot's first
         slots = ordered[first]
-        self.num_slots = len(slots)
-        self.row_start = wp.array(np.searchsorted(slots // n, np.arange(n + 1)).astype(np.int32), device=d)
-        self.column = wp.array((slots % n).astype(np.int32), device=d)
-        self.slot_start = wp.array(np.append(first, len(key)).astype(np.int32), device=d)
-        self.contributions = wp.array(order.astype(np.int32), device=d)
+        self.filled = len(slots)  # the slots that hold a block (the padding aside)
+        place, column, chunk_start, chunk_slots = chunked(slots // n, slots % n, n, self.chunk_rows)
+        self.num_slots = len(column)
+        if self.num_slots >= 2 ** 31:
+            raise ValueError(f"AssembledBlocks: {self.num_slots} slots pass the 2^31 a Warp index holds; "
+                             "step fewer designs at a time, or use operator='matrix_free'")
+        self.chunk_start = wp.array(chunk_start, dtype=wp.int32, device=d)
+        self.chunk_slots = wp.array(chunk_slots, dtype=wp.int32, device=d)
+        self.column = wp.array(column, dtype=wp.int32, device=d)
+        self.place = place  # (filled,) where each slot of the rows in order lies, host
+        # each place's element blocks: a filled slot's, in the order of the places; none for the padding
+        count = np.zeros(self.num_slots, dtype=np.int64)
+        count[place] = np.diff(np.append(first, len(key)))
+        by_place = np.argsort(place, kind="stable")  # the filled slots in the order of their places
+        starts = np.repeat(first[by_place] - np.concatenate([[0], np.cumsum(count[place][by_place])[:-1]]),
+                           count[place][by_place])
+        self.slot_start = wp.array(np.concatenate([[0], np.cumsum(count)]).astype(np.int32), device=d)
+        self.contributions = wp.array(order[starts + np.arange(len(key))].astype(np.int32), device=d)
         self.values = wp.zeros(self.num_slots, dtype=wp.mat33d, device=d)
         self.no_mass = wp.zeros(0, dtype=wp.float64, device=d)
         groups = elastic.groups
@@ -107,7 +148,14 @@ class AssembledBlocks:
         self.element_blocks = None if self.fused else wp.zeros(len(key), dtype=wp.mat33d, device=d)
         # per element block: its index (4 bytes) and a 16th of the element's rotated gradients and
         # moduli (112 bytes) when fused, else the block itself too (72 bytes)
-        self.memory_bytes = (11 if self.fused else 76) * len(key) + 80 * self.num_slots + 4 * (n + 1)
+        self.memory_bytes = (11 if self.fused else 76) * len(key) + 80 * self.num_slots + 8 * len(chunk_start)
+
+    def by_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The filled slots read back, rows in order: ``(rows, columns, values)``, ``(filled,)`` each
+        (values ``(filled, 3, 3)``, N/m)."""
+        c = self.chunk_rows
+        chunk = np.searchsorted(self.chunk_start.numpy().astype(np.int64) * c, self.place, side="right") - 1
+        return chunk * c + self.place % c, self.column.numpy()[self.place], self.values.numpy()[self.place]
 
     def refresh(self, rot: wp.array) -> None:
         """The blocks of ``K`` at the rotations ``rot`` (the element models' linearization)."""
@@ -125,5 +173,5 @@ class AssembledBlocks:
         m = self.model
         mass = m.mass if mass_scale != 0.0 else self.no_mass
         launch(assembled_kernels.block_product(x.shape[0], x.dtype), m.num_nodes,
-               inputs=[x, self.row_start, self.column, self.values, stiffness_scale, mass, mass_scale, m.node_world,
-                       done], outputs=[y], device=m.device)
+               inputs=[x, self.chunk_start, self.chunk_slots, self.chunk_rows, self.column, self.values,
+                       stiffness_scale, mass, mass_scale, m.node_world, done], outputs=[y], device=m.device)
