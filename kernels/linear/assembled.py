@@ -42,10 +42,9 @@ def block_product(columns: int, vector=wp.vec3d):
     ``vector``), a thread per node row ``i``: ``y[c, i] = mass_scale mass[i] x[c, i] + scale sum_j
     values[j] x[c, column[j]]`` over the row's slots (chunks of ``chunk_rows``: the module doc); a
     converged column of the row's world (``done``, the CG scalars ``(k, worlds, slots)``, or empty)
-    keeps what ``y`` held. ``mass`` is empty when
-    ``mass_scale`` is 0. ``x`` holds ``vector`` (vec3d, or vec3f: the block CG's directions in
-    single precision), the sums and ``y`` float64 (the product of the stored directions, exact
-    to float64's rounding)."""
+    keeps what ``y`` held. ``mass`` is empty when ``mass_scale`` is 0. ``x`` holds ``vector`` (vec3d,
+    or vec3f: the block CG's directions in single precision), the sums and ``y`` float64 (the
+    product of the stored directions, exact to float64's rounding)."""
     key = (columns, vector)
     if key in _kernels:
         return _kernels[key]

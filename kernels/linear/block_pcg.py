@@ -14,8 +14,8 @@ Per world ``w`` and iteration, with ``G_PAP = P^T A P``, ``G_RZ = R^T Z`` (both 
 Vectors are ``(k, n)`` vec3d as in ``pcg.py``, but for the directions ``P`` and ``Z``, which may
 be vec3f (:data:`DIRECTIONS`); the ``k x k`` matrices of world ``w`` live in ``gram[w, slot]`` and
 ``coef[w, slot]`` (float64), and every sum and product is taken in float64. A world's columns run
-until all of them reach the tolerance; a column with ``b = 0`` is left out of its world's block (its solution is 0).
-The small solves go through a Cholesky factor of the Gram matrix scaled to a unit diagonal,
+until all of them reach the tolerance; a column with ``b = 0`` is left out of its world's block
+(its solution is 0). The small solves go through a Cholesky factor of the Gram matrix scaled to a unit diagonal,
 pivoting out the directions that depend on the others (:data:`DEPENDENT`): two equal right-hand
 sides then share one direction instead of breaking the factorization.
 """

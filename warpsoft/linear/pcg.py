@@ -68,8 +68,8 @@ class PCG:
             preconditioner works in float32 anyway and can write it (``single_output``) and the
             operator takes it (its assembled blocks), else float64. Without the block CG: float64.
 
-    Attributes: ``bp``, ``bz`` the block CG's ``P`` and ``Z`` (``(k, n)``, vec3d or vec3f), the
-    column CG's ``p`` and ``z`` (vec3d) where they are vec3d.
+    Attributes: ``bp``, ``bz``: the block CG's ``P`` and ``Z``, ``(k, n)`` vec3d or vec3f (with vec3d,
+    the column CG's ``p`` and ``z`` themselves).
     """
 
     def __init__(self, operator: SystemOperator, preconditioner, columns: int, tolerance: float = 1e-6,
