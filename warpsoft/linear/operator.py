@@ -131,7 +131,7 @@ class AssembledBlocks:
         self.chunk_start = wp.array(chunk_start, dtype=wp.int32, device=d)
         self.chunk_slots = wp.array(chunk_slots, dtype=wp.int32, device=d)
         self.column = wp.array(column, dtype=wp.int32, device=d)
-        self.place = place  # (filled,) where each slot of the rows in order lies, host
+        self.place = place.astype(np.int32)  # (filled,) where each slot of the rows in order lies, host (by_rows)
         # each place's element blocks: a filled slot's, in the order of the places; none for the padding
         count = np.zeros(self.num_slots, dtype=np.int64)
         count[place] = np.diff(np.append(first, len(key)))
