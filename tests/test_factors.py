@@ -199,12 +199,14 @@ def test_columns_take_16_bits_where_every_factor_has_room_and_32_elsewhere(monke
     assert np.array_equal(got[wp.uint16], got[wp.int32]) and np.abs(got[wp.int32]).max() > 0
 
 
-def test_each_world_steps_as_alone_and_as_with_dense_blocks():
+def test_each_world_steps_as_alone_and_as_with_dense_blocks(monkeypatch):
     """Four designs stepped with the factors: each world as it steps alone (its positions and
     its CG iterations), and as with the dense inverses per world (the same preconditioner,
     another way to apply it, rounded otherwise: its first step's solves take 83-113 iterations,
     whose count the rounding moves by up to 2 (one BLAS thread or two for the factors' products
-    gave 109 or 110 against the dense inverse's 111); 2 apart at most)."""
+    gave 109 or 110 against the dense inverse's 111); 2 apart at most). No world refactorizes
+    alone here: the first two share a block, which alone they would not."""
+    monkeypatch.setattr(factors, "WORLD_FLOOR", None)
     scenes = four_designs()
     runs = {}
     for pre in ("factors", "blocks"):
@@ -311,3 +313,52 @@ def test_a_block_not_positive_definite_names_its_world(monkeypatch):
     monkeypatch.setattr(factors, "factor_programs", failing)
     with pytest.raises(ws.SceneError, match="WorldFactors: world 1 \\(scene 'beam'\\): its system is not positive"):
         _product([beam(cells=12), beam(cells=16)], 1)
+
+
+def test_a_world_whose_cg_grew_is_refactorized_alone():
+    """Factorized at one state, the four designs then bend further. A world whose CG count grew
+    past the floor marks its block due; the refresh between steps factorizes that block alone, at
+    the world's current rotations: its ``P^-1`` is then the host factor's at the current state (to
+    round-off), while the other worlds keep the warped factor of the old state."""
+    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
+    sim.step()
+    pre = WorldFactors(sim.operator, 3, "float64", share=False)
+    assert pre.world_floor is None  # (off by default)
+    pre.world_floor = 10
+    pre.prepare()  # factorized at the first step's state
+    for _ in range(3):
+        sim.step()
+    pre.prepare()  # the node rotations now (not stale: no factorization)
+    assert pre.refresh_worlds() == 0  # nothing observed, nothing due
+    pre.observe_worlds(np.array([6, 6, 6, 6]))  # each world's first solve after its factorization
+    pre.observe_worlds(np.array([6, 6 * 2 + 1, 6, 12]))  # world 1: more than twice and than the floor
+    assert pre.world_ratio == factors.WORLD_RATIO == 2.0
+    assert pre.refresh_worlds() == 1 and pre.world_refreshes == 1 and pre.refreshes == 1
+    host = WarpedFactor(sim.operator, 3, "host")
+    host.prepare()  # the whole model factorized at the current state
+    r = wp.array(np.random.default_rng(3).standard_normal((3, sim.model.num_nodes, 3)), dtype=wp.vec3d)
+    want, got = wp.zeros_like(r), wp.zeros_like(r)
+    host.apply(r, want)
+    pre.apply(r, got)
+    want, got = want.numpy(), got.numpy()
+    for w in range(4):
+        nodes = sim.model.world_nodes(w)
+        error = np.abs(got[:, nodes] - want[:, nodes]).max() / np.abs(want[:, nodes]).max()
+        assert (error < 1e-9) if w == 1 else (error > 1e-6), (w, error)
+    assert np.allclose(pre.q_rot.numpy()[sim.model.world_nodes(1)], np.eye(3), atol=1e-12)
+    assert pre.refresh_worlds() == 0  # done: nothing due until its count grows again
+
+
+def test_worlds_refactorized_alone_step_as_alone(monkeypatch):
+    """With a world's own refresh on (a floor of 1, a ratio of 1: due whenever its CG takes more
+    than right after its last factorization), three designs batched refresh world by world and
+    each steps as it does alone, refreshing the same way: the same positions, the same CG counts."""
+    monkeypatch.setattr(factors, "WORLD_FLOOR", 1)
+    monkeypatch.setattr(factors, "WORLD_RATIO", 1.0)
+    scenes = [beam(3e6, static=False), beam(1e6, 0.3, static=False), beam(cells=16, static=False)]
+    sim = ws.Simulator(ws.finalize(scenes), solver="pcg", preconditioner="factors", precision="float64",
+                       tolerance=1e-10)
+    together = [sim.step() for _ in range(5)]
+    pre = sim.solver.precond
+    assert pre.blocks == 3 and pre.refreshes == 1 and pre.world_refreshes > 0
+    steps_as_alone(scenes, sim, together, "factors", 0)

@@ -68,7 +68,9 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
     for _ in range(warmup):
         sim.step()
     setup = time.perf_counter() - t0
-    times, its, world_its, graphs = [], [], [], []
+    times, its, world_its, graphs, refresh = [], [], [], [], []
+    pre = getattr(sim.solver, "precond", None)
+    refreshed = getattr(pre, "world_refreshes", 0)
     for _ in range(steps):
         t0 = time.perf_counter()
         stats = sim.step()
@@ -76,11 +78,12 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
         graphs.append(sum(t for name, t in stats.stages.items() if name in GRAPHS))
         its.append(stats.cg_iterations)
         world_its.append(np.mean([w.cg_iterations for w in stats.worlds]))
+        refresh.append(stats.stages.get("refresh_worlds", 0.0))
+    refreshed = getattr(pre, "world_refreshes", 0) - refreshed  # (the timed steps')
     if kernels and sim.model.device.is_cuda:
         parts = {"kernels": uncaptured_kernels(sim)}
     else:
         parts = {}
-    pre = getattr(sim.solver, "precond", None)
     if pre is not None and getattr(pre, "capturable", False):  # a CG iteration's two big products, alone
         solver = sim.solver
         solver.scal.zero_()  # no world done: the product runs for all of them
@@ -91,7 +94,8 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
     if sim.timing and sim.model.device.is_cuda:  # the graphs' own time (synchronized), the rest is the host's
         parts["graph_ms"] = 1e3 * float(np.median(graphs))
     info = {**parts, "step_times_ms": [1e3 * t for t in times], "graph_times_ms": [1e3 * t for t in graphs],
-            "step_cg_iterations": its,
+            "step_cg_iterations": its, "step_mean_ms": 1e3 * float(np.mean(times)),
+            "world_refreshes": refreshed, "refresh_ms": 1e3 * float(np.mean(refresh)),
             "cg_iterations": float(np.median(its)), "world_cg_iterations": float(np.median(world_its)),
             "setup_s": setup, "preconditioner": type(pre).__name__,
             "blocks": getattr(pre, "blocks", None), "precond_mb": getattr(pre, "memory_bytes", 0) / 1e6}
@@ -158,6 +162,9 @@ def main(argv=None) -> int:
                     help="factors: their ordering (default warpsoft.linear.factors.ORDERING)")
     ap.add_argument("--factor-layout", default=None, choices=["rows", "panels"],
                     help="factors: how a level's work is cut (default warpsoft.linear.factors.LAYOUT)")
+    ap.add_argument("--world-floor", type=int, default=None,
+                    help="factors: the CG iterations past which a world's factor is made anew alone "
+                         "(default warpsoft.linear.factors.WORLD_FLOOR; 0: never)")
     ap.add_argument("--kernels", action="store_true",
                     help="CUDA: time each kernel and copy of one more step, uncaptured (kernels.md)")
     ap.add_argument("--out", default="out/batch")
@@ -166,6 +173,8 @@ def main(argv=None) -> int:
         factors.ORDERING = args.factor_ordering  # (WorldFactors reads it when made)
     if args.factor_layout:
         factors.LAYOUT = args.factor_layout
+    if args.world_floor is not None:
+        factors.WORLD_FLOOR = args.world_floor or None
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
     if args.workers > 1 and not os.environ.get("WARPSOFT_MESH_CACHE"):
         ap.error("--workers meshes ahead into the mesh cache: set WARPSOFT_MESH_CACHE to a folder")
@@ -191,7 +200,8 @@ def main(argv=None) -> int:
               f"{info['precond_mb']:.0f} MB  setup {info['setup_s']:.1f} s  "
               f"P^-1 {info.get('precond_ms', 0):.2f} ms  A {info.get('operator_ms', 0):.2f} ms  "
               f"assembly {info.get('assemble_ms', 0):.2f} ms  "
-              f"graphs {info.get('graph_ms', 0):.2f} ms", flush=True)
+              f"graphs {info.get('graph_ms', 0):.2f} ms  mean step {info['step_mean_ms']:.2f} ms  "
+              f"world refreshes {info['world_refreshes']} ({info['refresh_ms']:.2f} ms a step)", flush=True)
     alone = None
     if args.alone:
         k = args.alone

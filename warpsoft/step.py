@@ -52,6 +52,9 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     host_qp = inverse and sim.device_inverse is None
     host_resolve = host_qp or sim.host_gauss_seidel  # the step splits into two graphs around it
     host_inputs(sim, stats.time, controls)  # user schedules, evaluated once; uploads only when they change
+    if getattr(sim.solver, "worlds_due", False):
+        with stage(sim, stats, "refresh_worlds"):  # the worlds whose preconditioner went stale, made anew
+            sim.solver.refresh_worlds()
     newton = sim.newton
     factorizations = reuse_factor(sim)
     newton.begin_step()

@@ -64,8 +64,15 @@ class Elements:
         for g, r, _ in self._parts(rot):
             g.diagonal(r, diag)
 
-    def blocks(self, rot: wp.array, blocks: wp.array) -> None:
-        """Every element's rotated 3x3 stiffness blocks (N/m) into ``blocks`` ``(num_blocks,)``."""
+    def blocks(self, rot: wp.array, blocks: wp.array, elements: tuple[int, int] | None = None) -> None:
+        """Every element's rotated 3x3 stiffness blocks (N/m) into ``blocks`` ``(num_blocks,)``; with
+        ``elements`` ``(lo, hi)`` (a model of one element group), those of elements ``lo:hi`` alone."""
+        if elements is not None:
+            if len(self.groups) != 1:
+                raise ValueError(f"Elements: the blocks of a range of elements need one element group, got "
+                                 f"{self.kinds}")
+            self.groups[0].blocks(rot, blocks, elements)
+            return
         for g, r, b in self._parts(rot, "blocks", blocks):
             g.blocks(r, b)
 

@@ -79,12 +79,14 @@ class Corotational:
         launch(self.kernels.stiffness_diagonal, g.count, inputs=[g.elems, *self._tangent(rot)], outputs=[diag],
                device=m.device)
 
-    def blocks(self, rot: wp.array, blocks: wp.array) -> None:
+    def blocks(self, rot: wp.array, blocks: wp.array, elements: tuple[int, int] | None = None) -> None:
         """The ``k^2`` 3x3 blocks (N/m) of each element's ``K`` (``k`` nodes an element),
-        ``(k^2 count,)`` mat33d, block ``k a + b`` of element ``e`` at ``k^2 e + k a + b``."""
-        m = self.model
-        launch(self.kernels.stiffness_blocks, self.group.count, inputs=self._tangent(rot), outputs=[blocks],
-               device=m.device)
+        ``(k^2 count,)`` mat33d, block ``k a + b`` of element ``e`` at ``k^2 e + k a + b``;
+        with ``elements`` ``(lo, hi)``, those of the group's elements ``lo:hi`` alone, element
+        ``lo + e`` at ``k^2 e + k a + b`` (``blocks`` ``(k^2 (hi - lo),)``)."""
+        lo, hi = (0, self.group.count) if elements is None else elements
+        inputs = self._tangent(rot) if elements is None else [a[lo:hi] for a in self._tangent(rot)]
+        launch(self.kernels.stiffness_blocks, hi - lo, inputs=inputs, outputs=[blocks], device=self.model.device)
 
     def gather_blocks(self, rot: wp.array, slot_start: wp.array, contributions: wp.array, values: wp.array) -> bool:
         """The blocks of :meth:`blocks` summed into slots, none stored: ``values[s]`` (N/m) sums the

@@ -76,6 +76,13 @@ PANEL_ROWS = 4
 PANEL_SPREAD = (8.0, 1.0)
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
+# a world's own refresh (panels): its block is factorized anew at its state, between steps, when its CG
+# needed more than WORLD_RATIO times the iterations of its first solve after its block's last
+# factorization, and more than WORLD_FLOOR (None: never). Off by default: on the H200, 1024 Diamonds,
+# a floor of 10 took the graphs from 53.7 to 48.2 ms (44.8 ms at the last step) and the slowest world's
+# CG from 15 to 11, but its 133 refreshes, on the host in the step, cost 1.6 s a step
+# (docs/performance.md); it pays once they run beside the step
+WORLD_RATIO, WORLD_FLOOR = 2.0, None
 
 
 def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str,
@@ -110,7 +117,8 @@ class WorldFactors(WorldGroups):
         columns: right-hand sides ``k`` of the solves it serves.
         precision: "float32" or "float64", of the factors' entries, the solves and the frame ``q_rot``
             (the CG runs in float64; with float32, ``apply`` may write a vec3f ``z``: ``single_output``).
-        refresh_ratio, refresh_floor: when to refactorize, as :class:`~warpsoft.linear.warped.WarpedFactor`'s.
+        refresh_ratio, refresh_floor: when to refactorize every block, as
+            :class:`~warpsoft.linear.warped.WarpedFactor`'s.
         share, share_tolerance: which worlds share a factor, as
             :class:`~warpsoft.linear.blocks.WorldBlocks`'.
         ordering: the factors' ordering, :class:`~warpsoft.linear.assembly.CholmodFactor`'s
@@ -133,7 +141,10 @@ class WorldFactors(WorldGroups):
     columns: ``uint16`` when every factor has at most :data:`NARROW_PLACES` places, else ``int32``);
     with ``layout="panels"``: ``panel_rows`` (:data:`PANEL_ROWS`), ``panel_spread``
     (:data:`PANEL_SPREAD`) and ``panel_unroll`` (the columns a lane loads at a time),
-    ``unchecked_full`` (when every world runs, the panels' tasks do not test their world).
+    ``unchecked_full`` (when every world runs, the panels' tasks do not test their world),
+    ``world_ratio`` and ``world_floor`` (when a world's block is refactorized alone:
+    :meth:`observe_worlds`; from :data:`WORLD_RATIO`, :data:`WORLD_FLOOR`; a floor None: never),
+    ``world_refreshes`` (the blocks refactorized alone, in all).
     """
 
     capturable = True
@@ -201,6 +212,12 @@ class WorldFactors(WorldGroups):
         # when every world runs (the branch the tail's count picks), the panels' kernels skip the
         # test of a task's world: its lanes wait for one load fewer before the operands
         self.unchecked_full = True
+        self.world_ratio, self.world_floor = WORLD_RATIO, WORLD_FLOOR
+        self.world_refreshes = 0
+        self._world_first = np.zeros(m.num_worlds, dtype=np.int64)  # its first solve's iterations (0: none yet)
+        self._due = self._own = None  # per block: due for its own refresh; serving one world alone
+        self._analyses = {}  # block -> (CHOLMOD's analysis, the factor's supernodes), kept once refreshed alone
+        self._value_start = None  # per direction: each block's first value (panels), and the end
         self.tail(sorted({math.ceil(f * m.num_worlds) for f in TAIL}) if d.is_cuda else [])
 
     def tail(self, tiers: list[int]) -> None:
@@ -233,9 +250,10 @@ class WorldFactors(WorldGroups):
             return 0
         return sum(a.capacity for s in self.solves for a in s[:3]) + 3 * self.u.capacity
 
-    def _system(self, blocks: wp.array, w: int) -> np.ndarray:
-        """World ``w``'s lower triangle (its pattern's values) at the element blocks ``blocks``."""
-        values = self._values(blocks, w)
+    def _system(self, blocks: wp.array, w: int, local: bool = False) -> np.ndarray:
+        """World ``w``'s lower triangle (its pattern's values) at the element blocks ``blocks``
+        (``local``: world ``w``'s alone)."""
+        values = self._values(blocks, w, local)
         count = 144 * len(self.meshes[self.mesh_of[w]][0])  # 16 blocks of 9 numbers per element
         mass = np.repeat(values[count:], 3) if len(values) > count else None
         return self.patterns[self.mesh_of[w]].lower_values(values[:count], mass)
@@ -269,6 +287,8 @@ class WorldFactors(WorldGroups):
                 self._take(m, first, [(w, partial(factor_programs, *job))
                                       for w, job in zip(self.first_world, jobs, strict=True)])
         self.take_frame()
+        self._world_first[:] = 0  # every world's count starts anew
+        self._due = None
 
     def _take(self, m, first: bool, results: list) -> None:
         """Lay out the blocks' programs, ``results`` ``[(world, call)]`` in block order, each call
@@ -287,6 +307,72 @@ class WorldFactors(WorldGroups):
                 raise RuntimeError(f"WorldFactors: block {b}'s ordering changed between factorizations")
             programs.append(program)
         self._lay_out(programs)
+
+    def observe_worlds(self, iterations: np.ndarray) -> None:
+        """Told each world's iterations of a solve, ``(worlds,)``: a world whose CG grew past
+        ``world_ratio`` times its first solve's after its block's last factorization, and past
+        ``world_floor``, marks its block due for :meth:`refresh_worlds` (panels only; a block
+        that serves one world alone: a shared one is made at its first world's state, and its
+        other worlds would then step otherwise than alone)."""
+        if self.world_floor is None or self.block_of is None or self.layout != "panels":
+            return
+        its = np.asarray(iterations, dtype=np.int64)
+        if self._due is None:
+            self._due = np.zeros(self.blocks, dtype=bool)
+            self._own = np.bincount(self.block_of, minlength=self.blocks) == 1  # the blocks of one world
+        new = self._world_first == 0
+        self._world_first[new] = np.maximum(its[new], 1)
+        grown = ~new & (its > np.maximum(self.world_ratio * self._world_first, self.world_floor))
+        self._due[self.block_of[grown]] = True
+        self._due &= self._own
+
+    @property
+    def worlds_due(self) -> bool:
+        """Whether some block is due for its own refresh (:meth:`refresh_worlds`)."""
+        return self._due is not None and bool(self._due.any())
+
+    def refresh_worlds(self) -> int:
+        """Factorize anew each block due (:meth:`observe_worlds`) at its first world's last
+        linearization, write its values in place (the captured graphs read the same arrays) and
+        take its worlds' node rotations as their frame. Host work between steps: the block's
+        element blocks read back, CHOLMOD (its ordering and supernodes kept from the block's first
+        such refresh), the panels' values. Returns the blocks refreshed."""
+        due = np.flatnonzero(self._due) if self._due is not None else []
+        if not len(due):
+            return 0
+        m, d = self.op.model, self.op.model.device
+        npd = np.float64 if self.dtype == wp.float64 else np.float32
+        spans = []
+        for b in due:
+            w = int(self.first_world[b])
+            e0, e1 = int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])
+            blocks = wp.empty(16 * (e1 - e0), dtype=wp.mat33d, device=d)
+            self.op.elastic.blocks(self.op.rot, blocks, (e0, e1))
+            if b not in self._analyses:
+                self._analyses[b] = [CholmodFactor(self.patterns[self.mesh_of[w]].sparsity(), ordering=self.ordering),
+                                     None]
+            factor, supernodes = self._analyses[b]
+            try:
+                L, order = factor.lower(self._system(blocks, w, local=True))
+            except ArithmeticError as e:
+                raise SceneError(f"WorldFactors: world {w} (scene '{m.scenes[w].name}'): its system is not "
+                                 f"positive definite ({e}); is the body held?") from e
+            if not np.array_equal(order, self.orders[b]):
+                raise RuntimeError(f"WorldFactors: block {b}'s ordering changed between factorizations")
+            if supernodes is None:
+                supernodes = self._analyses[b][1] = Supernodal(L)
+            for (_, _, val, _, _), start, panels in zip(self.solves, self._value_start,
+                                                         supernodes.panels(L, self.panel_rows), strict=True):
+                if len(panels.val) != start[b + 1] - start[b]:
+                    raise RuntimeError(f"WorldFactors: block {b}'s panels changed between factorizations")
+                wp.copy(val, wp.array(panels.val.astype(npd), dtype=self.value_dtype, device=d),
+                        dest_offset=int(start[b]), count=len(panels.val))
+            spans.append((int(m.world_node_start[w]), int(m.world_node_start[w + 1])))
+            self._world_first[w] = 0
+        self.take_frame(spans)
+        self._due[:] = False
+        self.world_refreshes += len(due)
+        return len(due)
 
     def _lay_out(self, programs: list) -> None:
         """The programs of every block on the device: each block's entries once (their columns as
@@ -358,11 +444,12 @@ class WorldFactors(WorldGroups):
         (their first rows at its places), sorted by level; per level, its panels' mean columns."""
         m, d = self.op.model, self.op.model.device
         npd = np.float64 if self.dtype == wp.float64 else np.float32
-        solves = []
+        solves, starts = [], []
         for direction in range(2):
             progs = [p[direction] for p in programs]
             values = np.concatenate([[0], np.cumsum([len(p.val) for p in progs])])
             val = np.concatenate([p.val for p in progs]).astype(npd)
+            starts.append(values)
             if self.solves is not None:
                 self.solves[direction][2].assign(val)
                 continue
@@ -389,6 +476,7 @@ class WorldFactors(WorldGroups):
             solves.append((wp.array(tasks[order].astype(np.int32), dtype=kernels.panel_task, device=d),
                            wp.array(col, dtype=self.index_dtype, device=d),
                            wp.array(val, dtype=self.value_dtype, device=d), level_list, spans))
+        self._value_start = starts
         if self.solves is None:
             self.solves = solves
             self.inv_scale = wp.array((1.0 / self.scale_np).astype(npd), dtype=self.dtype, device=d)

@@ -156,9 +156,21 @@ class PCG:
         self._run(b, x)
 
     def finish(self, res: SolveResult) -> None:
-        """After a solve: tell the preconditioner how many iterations it took (it refreshes its
-        factorization when they grow)."""
+        """After a solve: tell the preconditioner how many iterations it took, and each world's
+        where it keeps a factorization per world (it refreshes them when they grow)."""
         self.precond.observe(res.iterations)
+        if res.world_iterations is not None and hasattr(self.precond, "observe_worlds"):
+            self.precond.observe_worlds(res.world_iterations)
+
+    @property
+    def worlds_due(self) -> bool:
+        """Whether some worlds' preconditioner is due for its own refresh (:meth:`refresh_worlds`)."""
+        return bool(getattr(self.precond, "worlds_due", False))
+
+    def refresh_worlds(self) -> None:
+        """Host work before a step's graphs: the due worlds' own refreshes (the graphs then read
+        the new factors in place)."""
+        self.precond.refresh_worlds()
 
     def solve(self, b: wp.array, x: wp.array) -> SolveResult:
         """Solve in place; ``x`` (``(k, n)`` vec3d) holds the warm start on entry."""

@@ -35,7 +35,7 @@ fewer columns listed and operand rows read (H200, 1024 Diamonds: ``P^-1`` 4.90 -
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -174,6 +174,7 @@ class Supernodal:
             dest = row * len(J) + np.searchsorted(J, col)
             seen.flat[dest] = True
             self.left.append((J, np.logical_or.accumulate(seen, axis=0), src, dest))
+        self._layouts = {}  # rows -> the panels, each value its place in the supernode rows (_panel_layout)
 
     @property
     def levels(self) -> tuple[int, int]:
@@ -235,23 +236,54 @@ class Supernodal:
     def panels(self, L: sp.csc_matrix, rows: int) -> tuple[Panels, Panels]:
         """The forward and backward solves of ``L`` (its pattern the one analysed) as panels of at
         most ``rows`` consecutive rows of a supernode, each panel's columns listed once."""
+        values = self.panel_values(L, rows)
+        return tuple(replace(p, val=v) for p, v in zip(self._panel_layout(rows), values, strict=True))
+
+    def panel_values(self, L: sp.csc_matrix, rows: int) -> tuple[np.ndarray, np.ndarray]:
+        """The values of :meth:`panels` alone, in its order (a refactorization's, the panels being
+        the same): each supernode's forward rows ``[T^-1, -T^-1 G]`` and backward rows ``[T^-T,
+        -T^-T L_RS^T]`` laid out whole, then gathered where the panels read them (the places are
+        found once per ``rows``; a Diamond's refactorization on the CPU VM, 3048 DOFs: 23 -> 15 ms)."""
+        forward, backward = self._panel_layout(rows)
+        F, B = np.empty(self._rows_size[0]), np.empty(self._rows_size[1])
+        for s, a, b, Tinv, J, _, M, R, N in self._solves(L):
+            w = b - a
+            f = F[self._rows_at[0][s]:self._rows_at[0][s] + w * (w + len(J))].reshape(w, w + len(J))
+            f[:, :w], f[:, w:] = Tinv, M
+            g = B[self._rows_at[1][s]:self._rows_at[1][s] + w * (w + len(R))].reshape(w, w + len(R))
+            g[:, :w], g[:, w:] = Tinv.T, N
+        return F[forward.val], B[backward.val]
+
+    def _panel_layout(self, rows: int) -> tuple[Panels, Panels]:
+        """The panels of ``rows`` rows (:meth:`panels`), each value the place it is read from in
+        :meth:`panel_values`' supernode rows (found once per ``rows``)."""
         if rows < 1:
             raise ValueError(f"Supernodal: a panel needs at least one row, got {rows}")
-        chunks = {"forward": [], "backward": []}  # per panel: (level, first row, inputs, outputs, values)
-        for s, a, b, Tinv, J, pattern, M, R, N in self._solves(L):
-            w = b - a
+        if rows in self._layouts:
+            return self._layouts[rows]
+        chunks = {"forward": [], "backward": []}  # per panel: (level, first row, inputs, outputs, places)
+        width = self.end - self.first
+        outside = [np.diff(self.indptr)[a] - w for a, w in zip(self.first, width, strict=True)]  # |R|
+        at = [np.concatenate([[0], np.cumsum(width * (width + [len(j[0]) for j in self.left]))]),
+              np.concatenate([[0], np.cumsum(width * (width + outside))])]
+        for s, (a, b) in enumerate(zip(self.first, self.end, strict=True)):
+            w, (J, pattern, _, _) = b - a, self.left[s]
+            R = self.indices[self.indptr[a] + w:self.indptr[a + 1]]
             for i0 in range(0, w, rows):
                 i1 = min(i0 + rows, w)
+                here = np.arange(i0, i1)[:, None]
                 # forward: rows i0..i1 read the input's a..a + i1 (T^-1 lower: zeros right of each
                 # row's diagonal) and the columns of J that the last of them reads (the patterns
                 # grow down a supernode: the earlier rows' are inside, with zeros elsewhere)
                 reads = np.flatnonzero(pattern[i1 - 1]) if len(J) else np.zeros(0, dtype=np.int64)
                 chunks["forward"].append((self.forward_level[s], a + i0, a + np.arange(i1), J[reads],
-                                          np.hstack([Tinv[i0:i1, :i1], M[i0:i1, reads]])))
+                                          at[0][s] + here * (w + len(J)) + np.concatenate([np.arange(i1), w + reads])))
                 # backward: rows i0..i1 read the input's a + i0..b (T^-T upper) and all of R
                 chunks["backward"].append((self.backward_level[s], a + i0, a + np.arange(i0, w), R,
-                                           np.hstack([Tinv.T[i0:i1, i0:], N[i0:i1]])))
-        return _panels(chunks["forward"]), _panels(chunks["backward"])
+                                           at[1][s] + here * (w + len(R)) + np.arange(i0, w + len(R))))
+        self._rows_at, self._rows_size = at, (int(at[0][-1]), int(at[1][-1]))
+        self._layouts[rows] = _panels(chunks["forward"]), _panels(chunks["backward"])
+        return self._layouts[rows]
 
 
 def _panels(chunks: list) -> Panels:

@@ -91,14 +91,19 @@ class WarpedFrames:
         """Factorize at the current state, then :meth:`take_frame` (each preconditioner its own way)."""
         raise NotImplementedError
 
-    def take_frame(self) -> None:
-        """After a factorization at the current rotations: they become the frame (``Q = I``)."""
+    def take_frame(self, spans: list[tuple[int, int]] | None = None) -> None:
+        """After a factorization at the current rotations: they become the frame (``Q = I``), of
+        every node, or of the nodes ``lo:hi`` of each of ``spans`` (worlds refactorized alone)."""
         m = self.op.model
-        wp.copy(self.frame, self.node_rot)
+        if spans is None:
+            wp.copy(self.frame, self.node_rot)
+        for lo, hi in spans or []:
+            wp.copy(self.frame, self.node_rot, dest_offset=lo, src_offset=lo, count=hi - lo)
         launch(kernels.relative_node_rotations(self.q_rot.dtype), m.num_nodes, inputs=[self.node_sum, self.frame],
                outputs=[self.node_rot, self.q_rot], device=m.device)
-        self.refreshes += 1
-        self._baseline, self._stale = None, False
+        if spans is None:
+            self.refreshes += 1
+            self._baseline, self._stale = None, False
 
     def observe(self, iterations: int) -> None:
         """Told the iteration count of each solve; marks the factorization stale when it grows."""
