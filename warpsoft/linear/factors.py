@@ -296,17 +296,24 @@ class WorldFactors(WorldGroups):
         ``m``: the model."""
         programs = []
         for b, (w, result) in enumerate(results):
-            try:
-                order, program = result()
-            except ArithmeticError as e:
-                raise SceneError(f"WorldFactors: world {w} (scene '{m.scenes[w].name}'): its system is not "
-                                 f"positive definite ({e}); is the body held?") from e
+            order, program = self._factorized(m, b, w, result, first)
             if first:
                 self.orders.append(order)
-            elif not np.array_equal(order, self.orders[b]):
-                raise RuntimeError(f"WorldFactors: block {b}'s ordering changed between factorizations")
             programs.append(program)
         self._lay_out(programs)
+
+    def _factorized(self, m, b: int, w: int, call, first: bool = False) -> tuple:
+        """``call()`` (a factorization of block ``b``, whose world is ``w``, returning ``(order,
+        ...)``), a system not positive definite named by its world; after the first, its ordering
+        checked against the block's."""
+        try:
+            result = call()
+        except ArithmeticError as e:
+            raise SceneError(f"WorldFactors: world {w} (scene '{m.scenes[w].name}'): its system is not "
+                             f"positive definite ({e}); is the body held?") from e
+        if not first and not np.array_equal(result[0], self.orders[b]):
+            raise RuntimeError(f"WorldFactors: block {b}'s ordering changed between factorizations")
+        return result
 
     def observe_worlds(self, iterations: np.ndarray) -> None:
         """Told each world's iterations of a solve, ``(worlds,)``: a world whose CG grew past
@@ -352,13 +359,8 @@ class WorldFactors(WorldGroups):
                 self._analyses[b] = [CholmodFactor(self.patterns[self.mesh_of[w]].sparsity(), ordering=self.ordering),
                                      None]
             factor, supernodes = self._analyses[b]
-            try:
-                L, order = factor.lower(self._system(blocks, w, local=True))
-            except ArithmeticError as e:
-                raise SceneError(f"WorldFactors: world {w} (scene '{m.scenes[w].name}'): its system is not "
-                                 f"positive definite ({e}); is the body held?") from e
-            if not np.array_equal(order, self.orders[b]):
-                raise RuntimeError(f"WorldFactors: block {b}'s ordering changed between factorizations")
+            system = self._system(blocks, w, local=True)
+            order, L = self._factorized(m, b, w, lambda f=factor, s=system: f.lower(s)[::-1])  # (order, L)
             if supernodes is None:
                 supernodes = self._analyses[b][1] = Supernodal(L)
             for (_, _, val, _, _), start, panels in zip(self.solves, self._value_start,
