@@ -318,13 +318,14 @@ def test_a_block_not_positive_definite_names_its_world(monkeypatch):
 def test_a_world_whose_cg_grew_is_refactorized_alone():
     """Factorized at one state, the four designs then bend further. A world whose CG count grew
     past the floor marks its block due; the refresh between steps factorizes that block alone, at
-    the world's current rotations: its ``P^-1`` is then the host factor's at the current state (to
-    round-off), while the other worlds keep the warped factor of the old state."""
+    the world's current rotations (installed at the same boundary, with a lag of 0): its ``P^-1``
+    is then the host factor's at the current state (to round-off), while the other worlds keep the
+    warped factor of the old state."""
     sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
     sim.step()
     pre = WorldFactors(sim.operator, 3, "float64", share=False)
-    assert pre.world_floor is None  # (off by default)
-    pre.world_floor = 10
+    assert pre.world_floor is None and pre.world_lag == factors.WORLD_LAG == 1  # (off by default)
+    pre.world_floor, pre.world_lag = 10, 0
     pre.prepare()  # factorized at the first step's state
     for _ in range(3):
         sim.step()
@@ -349,10 +350,92 @@ def test_a_world_whose_cg_grew_is_refactorized_alone():
     assert pre.refresh_worlds() == 0  # done: nothing due until its count grows again
 
 
+def test_a_world_refactorized_beside_the_step_is_installed_a_boundary_later():
+    """With a lag of 1, a block found due at one boundary is factorized (by a worker) at that
+    state and installed at the next boundary, whatever the worlds did in between: until then its
+    world's ``P^-1`` is unchanged; then the world's frame is its node rotations of the state
+    factorized, and its ``Q`` turns from those to the current ones."""
+    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
+    sim.step()
+    pre = WorldFactors(sim.operator, 3, "float64", share=False)
+    pre.world_floor = 10
+    pre.prepare()
+    for _ in range(2):
+        sim.step()
+    pre.prepare()
+    r = wp.array(np.random.default_rng(4).standard_normal((3, sim.model.num_nodes, 3)), dtype=wp.vec3d)
+    before, after = wp.zeros_like(r), wp.zeros_like(r)
+    pre.apply(r, before)
+    pre.observe_worlds(np.array([6, 6, 6, 6]))
+    pre.observe_worlds(np.array([6, 6, 13, 6]))  # world 2 due
+    factorized = pre.node_rot.numpy().copy()  # the rotations of the state it is factorized at
+    frame = pre.frame.numpy().copy()  # (on the CPU, numpy() is a view)
+    assert pre.refresh_worlds() == 0 and pre.worlds_due  # sent: pending until the next boundary
+    pre.apply(r, after)
+    assert np.array_equal(before.numpy(), after.numpy())  # nothing installed yet
+    sim.step()
+    pre.prepare()  # a later state
+    now = pre.node_rot.numpy()
+    assert pre.refresh_worlds() == 1 and not pre.worlds_due and pre.world_refreshes == 1
+    nodes = sim.model.world_nodes(2)
+    others = np.ones(sim.model.num_nodes, dtype=bool)
+    others[nodes] = False
+    assert np.array_equal(pre.frame.numpy()[nodes], factorized[nodes])
+    assert np.array_equal(pre.frame.numpy()[others], frame[others])
+    assert np.abs(now[nodes] - factorized[nodes]).max() > 1e-6  # (the state moved on)
+    q = pre.q_rot.numpy()[nodes]
+    assert np.allclose(q, now[nodes] @ np.transpose(factorized[nodes], (0, 2, 1)), atol=1e-12)
+
+
+@pytest.mark.parametrize("workers", [2, 1])
+def test_a_world_refactorized_alone_not_positive_definite_names_its_world(monkeypatch, workers):
+    """A world's own refactorization that fails, in a worker process or in this one, is reported
+    where it is installed, with the world and its scene."""
+    from warpsoft.linear import refactor
+
+    class Failing(CholmodFactor):
+        def lower(self, values):
+            raise ArithmeticError("7")
+
+    monkeypatch.setattr(refactor, "CholmodFactor", Failing)  # (before the workers fork)
+    monkeypatch.setattr(factors, "WORKERS", workers)
+    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
+    sim.step()
+    pre = WorldFactors(sim.operator, 3, "float64", share=False)
+    pre.world_floor = 10
+    pre.prepare()
+    pre.observe_worlds(np.array([6, 6, 6, 6]))
+    pre.observe_worlds(np.array([6, 6, 13, 6]))
+    assert pre.refresh_worlds() == 0
+    assert pre.refactorizer.workers == (2 if workers == 2 else 0)
+    with pytest.raises(ws.SceneError, match="WorldFactors: world 2 \\(scene 'beam'\\): its system is not positive"):
+        pre.refresh_worlds()
+
+
+def test_worlds_refactorized_in_workers_step_as_in_this_process(monkeypatch):
+    """The workers' factors are this process's: four designs refreshed world by world (a floor of
+    1, a ratio of 1) step to the same positions, bit for bit, with two worker processes as with
+    none."""
+    monkeypatch.setattr(factors, "WORLD_FLOOR", 1)
+    monkeypatch.setattr(factors, "WORLD_RATIO", 1.0)
+    runs = []
+    for workers in (2, 1):
+        monkeypatch.setattr(factors, "WORKERS", workers)
+        sim = ws.Simulator(ws.finalize(four_designs()), solver="pcg", preconditioner="factors",
+                           precision="float64", tolerance=1e-10, share_tolerance=0.0)
+        stats = [sim.step() for _ in range(5)]
+        pre = sim.solver.precond
+        assert pre.world_refreshes > 0 and pre.refactorizer.workers == (workers if workers > 1 else 0)
+        runs.append((sim.positions(), [s.cg_iterations for s in stats], pre.world_refreshes))
+    assert np.array_equal(runs[0][0], runs[1][0]) and runs[0][1:] == runs[1][1:]
+
+
 def test_worlds_refactorized_alone_step_as_alone(monkeypatch):
     """With a world's own refresh on (a floor of 1, a ratio of 1: due whenever its CG takes more
     than right after its last factorization), three designs batched refresh world by world and
-    each steps as it does alone, refreshing the same way: the same positions, the same CG counts."""
+    each steps as it does alone, refreshing the same way: the same positions, the same CG counts
+    to one (with no refresh at all, the 16-cell beam's second step takes 127 iterations batched and
+    128 alone: its sums in another order, at the tolerance's edge)."""
     monkeypatch.setattr(factors, "WORLD_FLOOR", 1)
     monkeypatch.setattr(factors, "WORLD_RATIO", 1.0)
     scenes = [beam(3e6, static=False), beam(1e6, 0.3, static=False), beam(cells=16, static=False)]
@@ -361,4 +444,4 @@ def test_worlds_refactorized_alone_step_as_alone(monkeypatch):
     together = [sim.step() for _ in range(5)]
     pre = sim.solver.precond
     assert pre.blocks == 3 and pre.refreshes == 1 and pre.world_refreshes > 0
-    steps_as_alone(scenes, sim, together, "factors", 0)
+    steps_as_alone(scenes, sim, together, "factors", 1)

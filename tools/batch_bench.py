@@ -80,6 +80,8 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
         world_its.append(np.mean([w.cg_iterations for w in stats.worlds]))
         refresh.append(stats.stages.get("refresh_worlds", 0.0))
     refreshed = getattr(pre, "world_refreshes", 0) - refreshed  # (the timed steps')
+    refactor = getattr(pre, "refactorizer", None)  # (its waits, in all: warm-up included)
+    waited = {"refactor_waited_s": refactor.waited, "refactor_submitted": refactor.submitted} if refactor else {}
     if kernels and sim.model.device.is_cuda:
         parts = {"kernels": uncaptured_kernels(sim)}
     else:
@@ -95,7 +97,7 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
         parts["graph_ms"] = 1e3 * float(np.median(graphs))
     info = {**parts, "step_times_ms": [1e3 * t for t in times], "graph_times_ms": [1e3 * t for t in graphs],
             "step_cg_iterations": its, "step_mean_ms": 1e3 * float(np.mean(times)),
-            "world_refreshes": refreshed, "refresh_ms": 1e3 * float(np.mean(refresh)),
+            "world_refreshes": refreshed, "refresh_ms": 1e3 * float(np.mean(refresh)), **waited,
             "cg_iterations": float(np.median(its)), "world_cg_iterations": float(np.median(world_its)),
             "setup_s": setup, "preconditioner": type(pre).__name__,
             "blocks": getattr(pre, "blocks", None), "precond_mb": getattr(pre, "memory_bytes", 0) / 1e6}
@@ -165,6 +167,9 @@ def main(argv=None) -> int:
     ap.add_argument("--world-floor", type=int, default=None,
                     help="factors: the CG iterations past which a world's factor is made anew alone "
                          "(default warpsoft.linear.factors.WORLD_FLOOR; 0: never)")
+    ap.add_argument("--world-lag", type=int, default=None,
+                    help="factors: the step boundaries between a world's factor sent to a worker and its "
+                         "installation (default warpsoft.linear.factors.WORLD_LAG)")
     ap.add_argument("--kernels", action="store_true",
                     help="CUDA: time each kernel and copy of one more step, uncaptured (kernels.md)")
     ap.add_argument("--out", default="out/batch")
@@ -175,6 +180,8 @@ def main(argv=None) -> int:
         factors.LAYOUT = args.factor_layout
     if args.world_floor is not None:
         factors.WORLD_FLOOR = args.world_floor or None
+    if args.world_lag is not None:
+        factors.WORLD_LAG = args.world_lag
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
     if args.workers > 1 and not os.environ.get("WARPSOFT_MESH_CACHE"):
         ap.error("--workers meshes ahead into the mesh cache: set WARPSOFT_MESH_CACHE to a folder")
@@ -201,7 +208,8 @@ def main(argv=None) -> int:
               f"P^-1 {info.get('precond_ms', 0):.2f} ms  A {info.get('operator_ms', 0):.2f} ms  "
               f"assembly {info.get('assemble_ms', 0):.2f} ms  "
               f"graphs {info.get('graph_ms', 0):.2f} ms  mean step {info['step_mean_ms']:.2f} ms  "
-              f"world refreshes {info['world_refreshes']} ({info['refresh_ms']:.2f} ms a step)", flush=True)
+              f"world refreshes {info['world_refreshes']} ({info['refresh_ms']:.2f} ms a step, "
+              f"waited {info.get('refactor_waited_s', 0):.2f} s in all)", flush=True)
     alone = None
     if args.alone:
         k = args.alone

@@ -47,6 +47,7 @@ from ..launch import launch
 from .assembly import ORDERINGS, CholmodFactor, Pattern, Sparsity
 from .blocks import WorldGroups, _dense_entries
 from .operator import SystemOperator
+from .refactor import Block, Refactorizer, lower_system
 from .supernodal import Panels, Program, Supernodal, sliced
 
 LANES = 32  # threads a row in the levels of long rows, on CUDA
@@ -78,11 +79,13 @@ WORKERS = None  # processes that factorize the blocks (None: one a core this pro
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
 # a world's own refresh (panels): its block is factorized anew at its state, between steps, when its CG
 # needed more than WORLD_RATIO times the iterations of its first solve after its block's last
-# factorization, and more than WORLD_FLOOR (None: never). Off by default: on the H200, 1024 Diamonds,
-# a floor of 10 took the graphs from 53.7 to 48.2 ms (44.8 ms at the last step) and the slowest world's
-# CG from 15 to 11, but its 133 refreshes, on the host in the step, cost 1.6 s a step
-# (docs/performance.md); it pays once they run beside the step
-WORLD_RATIO, WORLD_FLOOR = 2.0, None
+# factorization, and more than WORLD_FLOOR (None: never), by worker processes beside the steps and
+# installed WORLD_LAG step boundaries later (warpsoft/linear/refactor.py). Off by default: on the H200,
+# 1024 Diamonds, a floor of 10 takes the graphs from 53.0 to 48.4 ms (44.2 ms at the last step) and the
+# slowest world's CG from 17 to 11, but the host's share of its 132 refreshes (each world's element
+# blocks, 4.6 MB, copied to pageable shared memory: ~6 ms each) still cost 150-500 ms a step
+# (docs/performance.md)
+WORLD_RATIO, WORLD_FLOOR, WORLD_LAG = 2.0, None, 1
 
 
 def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str,
@@ -144,7 +147,9 @@ class WorldFactors(WorldGroups):
     ``unchecked_full`` (when every world runs, the panels' tasks do not test their world),
     ``world_ratio`` and ``world_floor`` (when a world's block is refactorized alone:
     :meth:`observe_worlds`; from :data:`WORLD_RATIO`, :data:`WORLD_FLOOR`; a floor None: never),
-    ``world_refreshes`` (the blocks refactorized alone, in all).
+    ``world_lag`` (the step boundaries between a block found due and its new factor installed,
+    :data:`WORLD_LAG`), ``world_refreshes`` (the blocks refactorized alone and installed, in all),
+    ``refactorizer`` (their :class:`~warpsoft.linear.refactor.Refactorizer`, made at the first).
     """
 
     capturable = True
@@ -212,11 +217,10 @@ class WorldFactors(WorldGroups):
         # when every world runs (the branch the tail's count picks), the panels' kernels skip the
         # test of a task's world: its lanes wait for one load fewer before the operands
         self.unchecked_full = True
-        self.world_ratio, self.world_floor = WORLD_RATIO, WORLD_FLOOR
-        self.world_refreshes = 0
+        self.world_ratio, self.world_floor, self.world_lag = WORLD_RATIO, WORLD_FLOOR, WORLD_LAG
+        self.world_refreshes, self.refactorizer = 0, None
         self._world_first = np.zeros(m.num_worlds, dtype=np.int64)  # its first solve's iterations (0: none yet)
         self._due = self._own = None  # per block: due for its own refresh; serving one world alone
-        self._analyses = {}  # block -> (CHOLMOD's analysis, the factor's supernodes), kept once refreshed alone
         self._value_start = None  # per direction: each block's first value (panels), and the end
         self.tail(sorted({math.ceil(f * m.num_worlds) for f in TAIL}) if d.is_cuda else [])
 
@@ -255,8 +259,8 @@ class WorldFactors(WorldGroups):
         (``local``: world ``w``'s alone)."""
         values = self._values(blocks, w, local)
         count = 144 * len(self.meshes[self.mesh_of[w]][0])  # 16 blocks of 9 numbers per element
-        mass = np.repeat(values[count:], 3) if len(values) > count else None
-        return self.patterns[self.mesh_of[w]].lower_values(values[:count], mass)
+        masses = values[count:] if len(values) > count else None
+        return lower_system(self.patterns[self.mesh_of[w]], values[:count], masses)
 
     def refresh(self) -> None:
         """Factorize each block at the current rotations (its first world's state) with CHOLMOD,
@@ -289,6 +293,8 @@ class WorldFactors(WorldGroups):
         self.take_frame()
         self._world_first[:] = 0  # every world's count starts anew
         self._due = None
+        if self.refactorizer is not None:  # blocks being refactorized alone: made at an older state
+            self.refactorizer.cancel()
 
     def _take(self, m, first: bool, results: list) -> None:
         """Lay out the blocks' programs, ``results`` ``[(world, call)]`` in block order, each call
@@ -335,46 +341,72 @@ class WorldFactors(WorldGroups):
 
     @property
     def worlds_due(self) -> bool:
-        """Whether some block is due for its own refresh (:meth:`refresh_worlds`)."""
-        return self._due is not None and bool(self._due.any())
+        """Whether the next step boundary has work (:meth:`refresh_worlds`): a block due for its own
+        refresh, or one being refactorized."""
+        pending = self.refactorizer is not None and bool(self.refactorizer.pending)
+        return pending or (self._due is not None and bool(self._due.any()))
 
     def refresh_worlds(self) -> int:
-        """Factorize anew each block due (:meth:`observe_worlds`) at its first world's last
-        linearization, write its values in place (the captured graphs read the same arrays) and
-        take its worlds' node rotations as their frame. Host work between steps: the block's
-        element blocks read back, CHOLMOD (its ordering and supernodes kept from the block's first
-        such refresh), the panels' values. Returns the blocks refreshed."""
-        due = np.flatnonzero(self._due) if self._due is not None else []
-        if not len(due):
-            return 0
+        """At a step boundary (before the step's graphs): send each block due (:meth:`observe_worlds`)
+        to be factorized anew at its world's last linearization (:mod:`~warpsoft.linear.refactor`),
+        and install those sent ``world_lag`` boundaries ago: their values written in place (the
+        captured graphs read the same arrays), their worlds' frame the node rotations they were
+        factorized at. Host work here: a due world's element blocks copied into its worker's shared
+        memory, a job's values copied from it to the device; the system's sum, CHOLMOD and the
+        panels run in the worker. Returns the blocks installed."""
         m, d = self.op.model, self.op.model.device
-        npd = np.float64 if self.dtype == wp.float64 else np.float32
-        spans = []
-        for b in due:
+        if self.refactorizer is None and self._due is not None:
+            self.refactorizer = self._refactorizer()
+        refactor = self.refactorizer
+        if refactor is None:
+            return 0
+        refactor.lag = self.world_lag
+        refactor.next_boundary()
+        for b in np.flatnonzero(self._due) if self._due is not None else []:
+            if b in refactor.pending:  # (its count still grows on the old factor)
+                continue
             w = int(self.first_world[b])
             e0, e1 = int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])
             blocks = wp.empty(16 * (e1 - e0), dtype=wp.mat33d, device=d)
             self.op.elastic.blocks(self.op.rot, blocks, (e0, e1))
-            if b not in self._analyses:
-                self._analyses[b] = [CholmodFactor(self.patterns[self.mesh_of[w]].sparsity(), ordering=self.ordering),
-                                     None]
-            factor, supernodes = self._analyses[b]
-            system = self._system(blocks, w, local=True)
-            order, L = self._factorized(m, b, w, lambda f=factor, s=system: f.lower(s)[::-1])  # (order, L)
-            if supernodes is None:
-                supernodes = self._analyses[b][1] = Supernodal(L)
-            for (_, _, val, _, _), start, panels in zip(self.solves, self._value_start,
-                                                         supernodes.panels(L, self.panel_rows), strict=True):
-                if len(panels.val) != start[b + 1] - start[b]:
-                    raise RuntimeError(f"WorldFactors: block {b}'s panels changed between factorizations")
-                wp.copy(val, wp.array(panels.val.astype(npd), dtype=self.value_dtype, device=d),
-                        dest_offset=int(start[b]), count=len(panels.val))
-            spans.append((int(m.world_node_start[w]), int(m.world_node_start[w + 1])))
-            self._world_first[w] = 0
-        self.take_frame(spans)
-        self._due[:] = False
-        self.world_refreshes += len(due)
-        return len(due)
+            lo, hi = int(m.world_node_start[w]), int(m.world_node_start[w + 1])
+            frame = wp.empty(hi - lo, dtype=wp.mat33d, device=d)  # its nodes' rotations at this linearization
+            wp.copy(frame, self.node_rot, src_offset=lo, count=hi - lo)
+            refactor.submit(int(b), w, blocks, self.op.stiffness_scale, self.op.mass_scale, (lo, hi), frame)
+        if self._due is not None:
+            self._due[:] = False
+        jobs = refactor.due()
+        for job in jobs:
+            b = job.block
+            _, *values = self._factorized(m, b, job.world, lambda j=job: (self.orders[j.block], *refactor.values(j)))
+            for (_, _, val, _, _), start, v in zip(self.solves, self._value_start, values, strict=True):
+                val[int(start[b]):int(start[b + 1])].assign(v)  # (from the shared memory)
+            self._world_first[job.world] = 0
+        if jobs:
+            self.take_frame([job.span for job in jobs], [job.frame for job in jobs])
+        self.world_refreshes += len(jobs)
+        return len(jobs)
+
+    def _refactorizer(self) -> Refactorizer:
+        """The workers of the worlds' own refreshes (:data:`WORKERS`, or a core each), their shared
+        memory laid out for the blocks that serve one world alone."""
+        m = self.op.model
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        workers = min(self.workers or cores, int(self._own.sum()))
+        if "fork" not in multiprocessing.get_all_start_methods():  # (this process does the work)
+            workers = 1
+        own = [int(b) for b in np.flatnonzero(self._own)]
+        worlds = {b: int(self.first_world[b]) for b in own}
+        elements = {b: 144 * int(m.world_elem_start[w + 1] - m.world_elem_start[w]) for b, w in worlds.items()}
+        values = {b: tuple(int(s[b + 1] - s[b]) for s in self._value_start) for b in own}
+        itemsize = 8 if self.dtype == wp.float64 else 4
+        places, arenas = Refactorizer.layout(elements, values, workers, itemsize)
+        has_mass = getattr(m, "mass_np", None) is not None
+        blocks = {b: Block(self.patterns[self.mesh_of[w]], self.orders[b],
+                           m.mass_np[m.world_nodes(w)].copy() if has_mass else None, *places[b])
+                  for b, w in worlds.items()}
+        npd = np.float64 if itemsize == 8 else np.float32
+        return Refactorizer(blocks, arenas, self.world_lag, self.panel_rows, npd)
 
     def _lay_out(self, programs: list) -> None:
         """The programs of every block on the device: each block's entries once (their columns as

@@ -164,12 +164,13 @@ class PCG:
 
     @property
     def worlds_due(self) -> bool:
-        """Whether some worlds' preconditioner is due for its own refresh (:meth:`refresh_worlds`)."""
+        """Whether the step boundary has work for the worlds' own refreshes (:meth:`refresh_worlds`):
+        some are due, or being made."""
         return bool(getattr(self.precond, "worlds_due", False))
 
     def refresh_worlds(self) -> None:
-        """Host work before a step's graphs: the due worlds' own refreshes (the graphs then read
-        the new factors in place)."""
+        """Host work before a step's graphs: the due worlds' own refreshes sent to be made, those
+        made installed (the graphs then read the new factors in place)."""
         self.precond.refresh_worlds()
 
     def solve(self, b: wp.array, x: wp.array) -> SolveResult:

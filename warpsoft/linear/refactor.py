@@ -1,0 +1,270 @@
+"""A world's factor made anew beside the step (:meth:`WorldFactors.refresh_worlds
+<warpsoft.linear.factors.WorldFactors.refresh_worlds>`).
+
+A block of the factors that serves one world alone is refactorized when that world's CG grew:
+one rotation per node no longer follows the elements of a bending node (1024 Diamonds: the soft,
+thin designs climb from 7 to 18 iterations in 15 steps). That is host work: the world's system
+summed, CHOLMOD's numeric factorization in the block's ordering, then the panels' values
+(:meth:`~warpsoft.linear.supernodal.Supernodal.panel_values`), 13-15 ms for a Diamond of 3048
+DOFs on the 2-core VM, and 30-55 ms more the first time (the supernodes' analysis). Done in the
+step, one block after another, it cost 1.6 s a step on the H200's host for 1024 Diamonds. Here
+worker processes do it while the device runs the steps:
+
+- at the step boundary where a block is found due, its world's element blocks at the last
+  linearization are copied from the device into memory the block's worker shares, and the worker
+  is told (a few numbers down a pipe); that linearization's node rotations are kept on the
+  device, to become the world's frame with the new factor;
+- :attr:`Refactorizer.lag` boundaries later (one by default: the next step's) the worker's
+  values are copied from the shared memory to the device in place, and the frame taken, after
+  waiting for the worker if it has not finished. The trajectory therefore never depends on how
+  fast the host was; with a lag of 0 the factor is installed at the boundary that found it due.
+
+Each block has its worker (its index modulo the workers) and its place in that worker's shared
+memory (its element blocks, then its values), laid out when the workers are forked: they inherit
+each block's pattern, ordering and masses, keep its CHOLMOD analysis and supernodes from its first
+refactorization, and send back only a status. Nothing big crosses a pipe and the parent runs no
+thread of its own (a pool's threads, pickling the blocks and results, held the parent's GIL: 12-17
+ms of host time a refresh on the H200's host, docs/performance.md). Without ``fork`` (or with one
+worker) the same work runs in this process at submission, with the same results.
+"""
+
+from __future__ import annotations
+
+import mmap
+import multiprocessing
+import time
+import weakref
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+from threadpoolctl import threadpool_limits
+
+from .assembly import CholmodFactor, Pattern
+from .supernodal import Supernodal
+
+_WORKER_LIMITS = []  # a worker's BLAS thread limit, held for its life
+
+
+def lower_system(pattern: Pattern, entries: np.ndarray, masses: np.ndarray | None) -> np.ndarray:
+    """A world's system as the lower triangle on ``pattern``: its element blocks' numbers ``entries``
+    ``(144 elements,)`` summed into their slots, its nodes' ``masses`` ``(nodes,)`` (or None) on the
+    diagonal, both already scaled (the stiffness and mass scales of the operator)."""
+    return pattern.lower_values(entries, None if masses is None else np.repeat(masses, 3))
+
+
+@dataclass
+class Block:
+    """What a block's worker knows of it: its world's ``pattern``, the factor's ``order`` (the DOF
+    at each place), the world's nodes' ``masses`` ``(nodes,)`` kg (None without mass), and its
+    places in the shared memory (bytes): ``elements`` ``(offset, numbers)`` of its element blocks
+    (float64), ``values`` ``((offset, numbers), (offset, numbers))`` of its forward and backward
+    panels' values (in the factors' precision)."""
+
+    pattern: Pattern
+    order: np.ndarray
+    masses: np.ndarray | None
+    elements: tuple[int, int]
+    values: tuple[tuple[int, int], tuple[int, int]]
+
+
+def refactor(cache: dict, arena, block: int, info: Block, stiffness_scale: float, mass_scale: float,
+             panel_rows: int, dtype: type) -> None:
+    """Block ``block``'s factor at the element blocks in ``arena`` (unscaled, then times
+    ``stiffness_scale``; ``mass_scale`` times its masses on the diagonal), in its ordering, its
+    panels' values of ``panel_rows`` rows written to ``arena`` in ``dtype`` (``info``'s places).
+    ``cache`` keeps the block's CHOLMOD analysis and supernodes between calls. Raises
+    ArithmeticError when the system is not positive definite."""
+    if block not in cache:
+        cache[block] = [CholmodFactor(info.pattern.sparsity(), ordering="nested_dissection",
+                                      permutation=info.order), None]
+    factor, supernodes = cache[block]
+    elements = np.frombuffer(arena, np.float64, info.elements[1], info.elements[0])
+    masses = None if info.masses is None or mass_scale == 0.0 else mass_scale * info.masses
+    L, order = factor.lower(lower_system(info.pattern, stiffness_scale * elements, masses))
+    if not np.array_equal(order, info.order):
+        raise RuntimeError(f"Refactorizer: block {block}'s ordering changed between factorizations")
+    if supernodes is None:
+        supernodes = cache[block][1] = Supernodal(L)
+    for values, (offset, count) in zip(supernodes.panel_values(L, panel_rows), info.values, strict=True):
+        if len(values) != count:
+            raise RuntimeError(f"Refactorizer: block {block}'s panels changed between factorizations")
+        np.frombuffer(arena, dtype, count, offset)[:] = values
+
+
+def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type) -> None:
+    """A worker: for each ``(job, block, stiffness_scale, mass_scale)`` received, :func:`refactor`,
+    then ``(job, None)`` or ``(job, the error)`` sent back; None stops it."""
+    _WORKER_LIMITS.append(threadpool_limits(1))  # one BLAS thread: small products, and the workers fill the cores
+    cache = {}
+    while (message := conn.recv()) is not None:
+        job, block, stiffness_scale, mass_scale = message
+        try:
+            refactor(cache, arena, block, blocks[block], stiffness_scale, mass_scale, panel_rows, dtype)
+            conn.send((job, None))
+        except Exception as e:  # (sent back, raised where the job is installed)
+            conn.send((job, e))
+
+
+@dataclass
+class Job:
+    """A block being refactorized: ``block`` and its ``world``, the boundary it is installed at
+    (``at``), its number ``id``, the world's nodes ``span`` ``(lo, hi)`` and their rotations
+    ``frame`` ``(hi - lo,)`` mat33d at the linearization factorized (on the device)."""
+
+    block: int
+    world: int
+    at: int
+    id: int
+    span: tuple[int, int]
+    frame: wp.array
+
+
+class Refactorizer:
+    """Blocks refactorized in worker processes, installed a fixed number of step boundaries later.
+
+    Args:
+        blocks: block -> :class:`Block` (the offsets: see :meth:`layout`), of the blocks it may be
+            given; block ``b`` goes to worker ``b % workers``.
+        arenas: each worker's shared memory, bytes (:meth:`layout`); one arena: no worker, the work
+            runs in this process at submission (the caller gives one where processes cannot fork).
+        lag: boundaries between a block's submission and its installation (0: the same one).
+        panel_rows: the panels' rows (:meth:`~warpsoft.linear.supernodal.Supernodal.panels`).
+        dtype: the values' numpy type.
+
+    Attributes: ``workers`` (processes; 0: none), ``boundary`` (the boundaries counted), ``pending``
+    (block -> :class:`Job`), ``waited`` (seconds the host waited on workers, in all), ``submitted``.
+    """
+
+    def __init__(self, blocks: dict[int, Block], arenas: list[int], lag: int, panel_rows: int, dtype: type):
+        if lag < 0:
+            raise ValueError(f"Refactorizer: the lag is a count of step boundaries, got {lag}")
+        self.lag, self.panel_rows, self.dtype = int(lag), int(panel_rows), dtype
+        self.boundary, self.pending, self.waited, self.submitted = 0, {}, 0.0, 0
+        self.blocks = blocks
+        self.workers = len(arenas) if len(arenas) > 1 else 0
+        self._arenas = [mmap.mmap(-1, max(size, 1)) for size in arenas]  # shared with the forked workers
+        self._errors: dict[int, Exception | None] = {}  # job -> its outcome, once known
+        self._dropped: set[int] = set()  # jobs cancelled before their answer was read
+        self._queues = [deque() for _ in arenas]  # per worker, its jobs' ids in the order sent
+        self._cache: dict = {}  # this process's analyses (no workers)
+        self._procs = []
+        context = multiprocessing.get_context("fork") if self.workers else None
+        for k in range(self.workers):  # forked: they run CHOLMOD and numpy, never Warp or CUDA
+            mine = {b: info for b, info in blocks.items() if b % self.workers == k}
+            parent, child = context.Pipe()
+            proc = context.Process(target=_serve, args=(child, self._arenas[k], mine, self.panel_rows, dtype),
+                                   daemon=True, name=f"warpsoft-refactor-{k}")
+            proc.start()
+            child.close()
+            self._procs.append((proc, parent))
+        self._finalizer = weakref.finalize(self, _shut_down, self._procs)
+
+    @staticmethod
+    def layout(elements: dict[int, int], values: dict[int, tuple[int, int]], workers: int,
+               itemsize: int) -> tuple[dict, list[int]]:
+        """Each block's places in its worker's shared memory: ``elements`` block -> its element
+        blocks' numbers (float64), ``values`` block -> its forward and backward values (of
+        ``itemsize`` bytes). Returns block -> ``(elements (offset, count), values ((offset, count),
+        (offset, count)))`` and each arena's bytes (``workers`` of them, or one with 1 or less)."""
+        arenas = max(int(workers), 1)
+        sizes, places = [0] * arenas, {}
+        for b in sorted(elements):
+            k = b % arenas
+            at = sizes[k]
+            forward, backward = values[b]
+            f0 = at + 8 * elements[b]
+            b0 = f0 + -(-itemsize * forward // 8) * 8
+            places[b] = ((at, elements[b]), ((f0, forward), (b0, backward)))
+            sizes[k] = b0 + -(-itemsize * backward // 8) * 8
+        return places, sizes
+
+    def submit(self, block: int, world: int, elements: wp.array, stiffness_scale: float, mass_scale: float,
+               span: tuple[int, int], frame: wp.array) -> None:
+        """Refactorize ``block`` (of ``world``) at its world's element blocks ``elements`` ``(16 e,)``
+        mat33d (on the device), with the operator's scales, to install ``lag`` boundaries after the
+        current one; ``span`` and ``frame`` as :class:`Job`'s."""
+        info, k = self.blocks[block], block % max(self.workers, 1)
+        arena = self._arenas[k]
+        offset, count = info.elements
+        shared = np.frombuffer(arena, np.float64, count, offset).reshape(-1, 3, 3)
+        wp.copy(wp.array(shared, dtype=wp.mat33d, device="cpu", copy=False), elements)  # (straight into it)
+        job = self.submitted
+        if self.workers:
+            self._procs[k][1].send((job, block, float(stiffness_scale), float(mass_scale)))
+            self._queues[k].append(job)
+        else:
+            with threadpool_limits(1):
+                try:
+                    refactor(self._cache, arena, block, info, stiffness_scale, mass_scale, self.panel_rows, self.dtype)
+                    self._errors[job] = None
+                except ArithmeticError as e:  # raised where the job is installed, as a worker's would be
+                    self._errors[job] = e
+        self.pending[block] = Job(block, world, self.boundary + self.lag, job, span, frame)
+        self.submitted += 1
+
+    def due(self) -> list[Job]:
+        """The jobs to install at the current boundary (in block order), taken off ``pending``,
+        their workers waited for."""
+        jobs = [self.pending.pop(b) for b in sorted(self.pending) if self.pending[b].at <= self.boundary]
+        start = time.perf_counter()
+        for job in jobs:
+            k = job.block % max(self.workers, 1)
+            while job.id not in self._errors:  # a worker answers in the order it was told
+                proc, conn = self._procs[k]
+                try:
+                    done, error = conn.recv()
+                except EOFError:
+                    raise RuntimeError(f"Refactorizer: worker {k} stopped (exit code {proc.exitcode})") from None
+                if self._queues[k].popleft() != done:
+                    raise RuntimeError(f"Refactorizer: worker {k} answered job {done} out of order")
+                if done in self._dropped:
+                    self._dropped.discard(done)
+                else:
+                    self._errors[done] = error
+        self.waited += time.perf_counter() - start
+        return jobs
+
+    def values(self, job: Job) -> tuple[np.ndarray, np.ndarray]:
+        """A job's forward and backward values (views of the shared memory, until its block is sent
+        again); raises its worker's error."""
+        error = self._errors.pop(job.id)
+        if error is not None:
+            raise error
+        arena = self._arenas[job.block % max(self.workers, 1)]
+        return tuple(np.frombuffer(arena, self.dtype, count, offset) for offset, count in self.blocks[job.block].values)
+
+    def next_boundary(self) -> None:
+        """Count a step boundary."""
+        self.boundary += 1
+
+    def cancel(self) -> None:
+        """Forget the pending jobs (a refresh of every block made them stale); their workers'
+        answers are read and dropped with the next ones."""
+        for job in self.pending.values():
+            if job.id in self._errors:
+                del self._errors[job.id]
+            else:  # (its answer is still to come)
+                self._dropped.add(job.id)
+        self.pending.clear()
+
+    def close(self) -> None:
+        """Stop the workers."""
+        self.pending.clear()
+        self._finalizer()
+
+
+def _shut_down(procs: list) -> None:
+    """Tell each worker to stop, and end those that do not within a second."""
+    for _, conn in procs:
+        try:
+            conn.send(None)
+        except (BrokenPipeError, OSError):
+            pass
+    for proc, conn in procs:
+        proc.join(timeout=1.0)
+        if proc.is_alive():
+            proc.terminate()
+        conn.close()
+    procs.clear()
