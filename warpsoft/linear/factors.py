@@ -378,6 +378,7 @@ class WorldFactors(WorldGroups):
         jobs = refactor.due()
         for job in jobs:
             b = job.block
+            # (_factorized names the world of an error; the worker has checked the ordering itself)
             _, *values = self._factorized(m, b, job.world, lambda j=job: (self.orders[j.block], *refactor.values(j)))
             for (_, _, val, _, _), start, v in zip(self.solves, self._value_start, values, strict=True):
                 val[int(start[b]):int(start[b + 1])].assign(v)  # (from the shared memory)
