@@ -387,6 +387,48 @@ def test_a_world_refactorized_beside_the_step_is_installed_a_boundary_later():
     assert np.allclose(q, now[nodes] @ np.transpose(factorized[nodes], (0, 2, 1)), atol=1e-12)
 
 
+def test_a_block_analysed_ahead_refactorizes_as_one_analysed_at_its_first():
+    """With a world's own refresh on, the workers fork with the first factorization, and each
+    analyses its blocks' supernodes while it has nothing to do, on a made-up matrix of the pattern
+    (``refactor.warm``). A block's refactorization after that analysis writes the same panels, bit
+    for bit, as one that analysed its own system, and finds the same supernodes."""
+    import mmap
+
+    from warpsoft.linear import refactor
+
+    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
+    for _ in range(3):
+        sim.step()
+    pre = WorldFactors(sim.operator, 3, "float32", share=False)
+    pre.world_floor = 10
+    pre.prepare()
+    assert pre.refactorizer is not None and pre.refactorizer.submitted == 0  # forked before any due
+    m, b = sim.model, 2
+    w = int(pre.first_world[b])
+    info = pre.refactorizer.blocks[b]
+    e0, e1 = int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])
+    blocks = wp.zeros(16 * (e1 - e0), dtype=wp.mat33d, device=m.device)
+    pre.op.elastic.blocks(pre.op.rot, blocks, (e0, e1))  # the world's state three steps on
+    place = info.elements[0] - info.ready  # (this block alone, at the start of a fresh arena)
+    end = max(o + 4 * n for o, n in info.values) - info.ready
+    local = refactor.Block(info.pattern, info.order, info.masses, 0, (place, info.elements[1]),
+                           tuple((o - info.ready, n) for o, n in info.values))
+    panels, supernodes = [], []
+    for ahead in (True, False):
+        arena, cache = mmap.mmap(-1, end), {}
+        np.frombuffer(arena, np.float64, local.elements[1], place)[:] = blocks.numpy().ravel()
+        if ahead:
+            refactor.warm(cache, b, local)
+            assert cache[b][1] is not None  # analysed before any real system
+        refactor.refactor(cache, arena, b, local, 2.0, 0.0, pre.panel_rows, np.float32)
+        panels.append([np.frombuffer(arena, np.float32, n, o).copy() for o, n in local.values])
+        supernodes.append(cache[b][1])
+    for x, y in zip(*panels, strict=True):
+        assert np.array_equal(x, y) and np.abs(x).max() > 0
+    assert np.array_equal(supernodes[0].first, supernodes[1].first)
+    assert np.array_equal(supernodes[0].indices, supernodes[1].indices)
+
+
 @pytest.mark.parametrize("workers", [2, 1])
 def test_a_world_refactorized_alone_not_positive_definite_names_its_world(monkeypatch, workers):
     """A world's own refactorization that fails, in a worker process or in this one, is reported

@@ -81,7 +81,8 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
         refresh.append(stats.stages.get("refresh_worlds", 0.0))
     refreshed = getattr(pre, "world_refreshes", 0) - refreshed  # (the timed steps')
     refactor = getattr(pre, "refactorizer", None)  # (its waits, in all: warm-up included)
-    waited = {"refactor_waited_s": refactor.waited, "refactor_submitted": refactor.submitted} if refactor else {}
+    waited = {"refactor_waited_s": refactor.waited, "refactor_submitted": refactor.submitted,
+              "refactor_page_locked": refactor.page_locked} if refactor else {}
     if kernels and sim.model.device.is_cuda:
         parts = {"kernels": uncaptured_kernels(sim)}
     else:
@@ -209,7 +210,8 @@ def main(argv=None) -> int:
               f"assembly {info.get('assemble_ms', 0):.2f} ms  "
               f"graphs {info.get('graph_ms', 0):.2f} ms  mean step {info['step_mean_ms']:.2f} ms  "
               f"world refreshes {info['world_refreshes']} ({info['refresh_ms']:.2f} ms a step, "
-              f"waited {info.get('refactor_waited_s', 0):.2f} s in all)", flush=True)
+              f"waited {info.get('refactor_waited_s', 0):.2f} s in all"
+              f"{', page-locked' if info.get('refactor_page_locked') else ''})", flush=True)
     alone = None
     if args.alone:
         k = args.alone

@@ -292,9 +292,15 @@ class WorldFactors(WorldGroups):
                                       for w, job in zip(self.first_world, jobs, strict=True)])
         self.take_frame()
         self._world_first[:] = 0  # every world's count starts anew
-        self._due = None
+        if self._due is not None:
+            self._due[:] = False
         if self.refactorizer is not None:  # blocks being refactorized alone: made at an older state
             self.refactorizer.cancel()
+        elif first and self.world_floor is not None and self.layout == "panels":
+            # the workers forked now, while the model is built: they analyse their blocks before
+            # the steps need them (forking 16 from the H200's full host took 3.1 s)
+            self._start_own()
+            self.refactorizer = self._refactorizer()
 
     def _take(self, m, first: bool, results: list) -> None:
         """Lay out the blocks' programs, ``results`` ``[(world, call)]`` in block order, each call
@@ -331,13 +337,17 @@ class WorldFactors(WorldGroups):
             return
         its = np.asarray(iterations, dtype=np.int64)
         if self._due is None:
-            self._due = np.zeros(self.blocks, dtype=bool)
-            self._own = np.bincount(self.block_of, minlength=self.blocks) == 1  # the blocks of one world
+            self._start_own()
         new = self._world_first == 0
         self._world_first[new] = np.maximum(its[new], 1)
         grown = ~new & (its > np.maximum(self.world_ratio * self._world_first, self.world_floor))
         self._due[self.block_of[grown]] = True
         self._due &= self._own
+
+    def _start_own(self) -> None:
+        """The blocks that serve one world alone (they may be refreshed alone), none due yet."""
+        self._due = np.zeros(self.blocks, dtype=bool)
+        self._own = np.bincount(self.block_of, minlength=self.blocks) == 1
 
     @property
     def worlds_due(self) -> bool:
@@ -351,9 +361,10 @@ class WorldFactors(WorldGroups):
         to be factorized anew at its world's last linearization (:mod:`~warpsoft.linear.refactor`),
         and install those sent ``world_lag`` boundaries ago: their values written in place (the
         captured graphs read the same arrays), their worlds' frame the node rotations they were
-        factorized at. Host work here: a due world's element blocks copied into its worker's shared
-        memory, a job's values copied from it to the device; the system's sum, CHOLMOD and the
-        panels run in the worker. Returns the blocks installed."""
+        factorized at. Host work here: a due world's element blocks made and their copy into its
+        worker's shared memory queued (beside the graphs, on CUDA), a job's values copied from it to
+        the device; the system's sum, CHOLMOD and the panels run in the worker. Returns the blocks
+        installed."""
         m, d = self.op.model, self.op.model.device
         if self.refactorizer is None and self._due is not None:
             self.refactorizer = self._refactorizer()
@@ -407,7 +418,7 @@ class WorldFactors(WorldGroups):
                            m.mass_np[m.world_nodes(w)].copy() if has_mass else None, *places[b])
                   for b, w in worlds.items()}
         npd = np.float64 if itemsize == 8 else np.float32
-        return Refactorizer(blocks, arenas, self.world_lag, self.panel_rows, npd)
+        return Refactorizer(blocks, arenas, self.world_lag, self.panel_rows, npd, m.device)
 
     def _lay_out(self, programs: list) -> None:
         """The programs of every block on the device: each block's entries once (their columns as

@@ -11,26 +11,33 @@ step, one block after another, it cost 1.6 s a step on the H200's host for 1024 
 worker processes do it while the device runs the steps:
 
 - at the step boundary where a block is found due, its world's element blocks at the last
-  linearization are copied from the device into memory the block's worker shares, and the worker
-  is told (a few numbers down a pipe); that linearization's node rotations are kept on the
-  device, to become the world's frame with the new factor;
+  linearization are copied from the device into memory the block's worker shares, on a stream of
+  their own beside the step's graphs, followed by the job's number (its ``ready`` mark); the
+  worker is told at once (a few numbers down a pipe) and starts when the mark has landed. That
+  linearization's node rotations are kept on the device, to become the world's frame with the
+  new factor;
 - :attr:`Refactorizer.lag` boundaries later (one by default: the next step's) the worker's
   values are copied from the shared memory to the device in place, and the frame taken, after
   waiting for the worker if it has not finished. The trajectory therefore never depends on how
   fast the host was; with a lag of 0 the factor is installed at the boundary that found it due.
 
 Each block has its worker (its index modulo the workers) and its place in that worker's shared
-memory (its element blocks, then its values), laid out when the workers are forked: they inherit
-each block's pattern, ordering and masses, keep its CHOLMOD analysis and supernodes from its first
-refactorization, and send back only a status. Nothing big crosses a pipe and the parent runs no
-thread of its own (a ``concurrent.futures`` pool pickled each job's 4.6 MB in its threads: on the
-H200's host its refresh stage took 507 ms a step for 131 refreshes in 10 steps, these workers 449 ms
-for 132, docs/performance.md: the copies from the device are the larger part). Without ``fork`` (or
+memory (its mark, its element blocks, then its values), laid out when the workers are forked:
+they inherit each block's pattern, ordering and masses, and send back only a status. A worker
+analyses its blocks' supernodes while it has nothing to do (:func:`warm`, on a made-up matrix of
+the pattern: the supernodes depend on the pattern alone), so that a block's first refactorization
+costs what the later ones do. On CUDA the shared memory is page-locked once the workers are
+forked (``cuMemHostRegister``), so that the copies run beside the graphs instead of in the
+step's time: copied into pageable memory, touched for the first time, a world's 4.6 MB took about
+6 ms of the step on the H200's host (docs/performance.md). Nothing big crosses a pipe and the
+parent runs no thread of its own (a ``concurrent.futures`` pool pickled each job's 4.6 MB in its
+threads: its refresh stage took 507 ms a step for 131 refreshes in 10 steps). Without ``fork`` (or
 with one worker) the same work runs in this process at submission, with the same results.
 """
 
 from __future__ import annotations
 
+import ctypes
 import mmap
 import multiprocessing
 import time
@@ -46,6 +53,9 @@ from .assembly import CholmodFactor, Pattern
 from .supernodal import Supernodal
 
 _WORKER_LIMITS = []  # a worker's BLAS thread limit, held for its life
+# how long a worker waits for a job's element blocks to land once told of it (s): the copy is
+# already queued then, behind at most the boundary's few launches
+READY_TIMEOUT = 120.0
 
 
 def lower_system(pattern: Pattern, entries: np.ndarray, masses: np.ndarray | None) -> np.ndarray:
@@ -59,15 +69,45 @@ def lower_system(pattern: Pattern, entries: np.ndarray, masses: np.ndarray | Non
 class Block:
     """What a block's worker knows of it: its world's ``pattern``, the factor's ``order`` (the DOF
     at each place), the world's nodes' ``masses`` ``(nodes,)`` kg (None without mass), and its
-    places in the shared memory (bytes): ``elements`` ``(offset, numbers)`` of its element blocks
-    (float64), ``values`` ``((offset, numbers), (offset, numbers))`` of its forward and backward
-    panels' values (in the factors' precision)."""
+    places in the shared memory (bytes): ``ready`` the offset of its mark (int64: the last job
+    whose element blocks landed, plus one), ``elements`` ``(offset, numbers)`` of its element
+    blocks (float64), ``values`` ``((offset, numbers), (offset, numbers))`` of its forward and
+    backward panels' values (in the factors' precision)."""
 
     pattern: Pattern
     order: np.ndarray
     masses: np.ndarray | None
+    ready: int
     elements: tuple[int, int]
     values: tuple[tuple[int, int], tuple[int, int]]
+
+
+def _factor(cache: dict, block: int, info: Block, system: np.ndarray):
+    """Block ``block``'s lower factor of ``system`` (its pattern's values) in its ordering, and its
+    supernodes, analysed the first time and kept in ``cache``."""
+    if block not in cache:
+        cache[block] = [CholmodFactor(info.pattern.sparsity(), ordering="nested_dissection",
+                                      permutation=info.order), None]
+    factor, supernodes = cache[block]
+    L, order = factor.lower(system)
+    if not np.array_equal(order, info.order):
+        raise RuntimeError(f"Refactorizer: block {block}'s ordering changed between factorizations")
+    if supernodes is None:
+        supernodes = cache[block][1] = Supernodal(L)
+    return L, supernodes
+
+
+def warm(cache: dict, block: int, info: Block) -> None:
+    """Analyse block ``block``'s supernodes ahead of its first refactorization, on a made-up system
+    of its pattern (-1 off the diagonal, the pattern's entries on it: diagonally dominant, so
+    positive definite). CHOLMOD's factor has the pattern its analysis gives, whatever the values,
+    so its supernodes are the real system's."""
+    if block in cache and cache[block][1] is not None:
+        return
+    pattern = info.pattern
+    system = np.full(pattern.nnz, -1.0)
+    system[pattern.diagonal] = float(pattern.nnz)
+    _factor(cache, block, info, system)
 
 
 def refactor(cache: dict, arena, block: int, info: Block, stiffness_scale: float, mass_scale: float,
@@ -77,31 +117,46 @@ def refactor(cache: dict, arena, block: int, info: Block, stiffness_scale: float
     panels' values of ``panel_rows`` rows written to ``arena`` in ``dtype`` (``info``'s places).
     ``cache`` keeps the block's CHOLMOD analysis and supernodes between calls. Raises
     ArithmeticError when the system is not positive definite."""
-    if block not in cache:
-        cache[block] = [CholmodFactor(info.pattern.sparsity(), ordering="nested_dissection",
-                                      permutation=info.order), None]
-    factor, supernodes = cache[block]
     elements = np.frombuffer(arena, np.float64, info.elements[1], info.elements[0])
     masses = None if info.masses is None or mass_scale == 0.0 else mass_scale * info.masses
-    L, order = factor.lower(lower_system(info.pattern, stiffness_scale * elements, masses))
-    if not np.array_equal(order, info.order):
-        raise RuntimeError(f"Refactorizer: block {block}'s ordering changed between factorizations")
-    if supernodes is None:
-        supernodes = cache[block][1] = Supernodal(L)
+    L, supernodes = _factor(cache, block, info, lower_system(info.pattern, stiffness_scale * elements, masses))
     for values, (offset, count) in zip(supernodes.panel_values(L, panel_rows), info.values, strict=True):
         if len(values) != count:
             raise RuntimeError(f"Refactorizer: block {block}'s panels changed between factorizations")
         np.frombuffer(arena, dtype, count, offset)[:] = values
 
 
+def _landed(arena, block: int, info: Block, job: int) -> None:
+    """Wait until job ``job``'s element blocks of ``block`` are in ``arena`` (its mark reached)."""
+    mark = np.frombuffer(arena, np.int64, 1, info.ready)
+    deadline = time.monotonic() + READY_TIMEOUT
+    while mark[0] <= job:
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"Refactorizer: block {block}'s element blocks for job {job} never arrived "
+                               f"in {READY_TIMEOUT} s")
+        time.sleep(5e-5)
+
+
 def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type) -> None:
-    """A worker: for each ``(job, block, stiffness_scale, mass_scale)`` received, :func:`refactor`,
-    then ``(job, None)`` or ``(job, the error)`` sent back; None stops it."""
+    """A worker: for each ``(job, block, stiffness_scale, mass_scale)`` received, once its element
+    blocks landed, :func:`refactor`, then ``(job, None)`` or ``(job, the error)`` sent back; None
+    stops it. While nothing waits, it analyses its blocks one by one (:func:`warm`)."""
     _WORKER_LIMITS.append(threadpool_limits(1))  # one BLAS thread: small products, and the workers fill the cores
     cache = {}
-    while (message := conn.recv()) is not None:
+    cold = sorted(blocks)
+    while True:
+        while cold and not conn.poll():
+            b = cold.pop(0)
+            try:
+                warm(cache, b, blocks[b])
+            except Exception:  # (its first job analyses it, and reports what fails)
+                cache.pop(b, None)
+        message = conn.recv()
+        if message is None:
+            return
         job, block, stiffness_scale, mass_scale = message
         try:
+            _landed(arena, block, blocks[block], job)
             refactor(cache, arena, block, blocks[block], stiffness_scale, mass_scale, panel_rows, dtype)
             conn.send((job, None))
         except Exception as e:  # (sent back, raised where the job is installed)
@@ -112,7 +167,8 @@ def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type) -> None:
 class Job:
     """A block being refactorized: ``block`` and its ``world``, the boundary it is installed at
     (``at``), its number ``id``, the world's nodes ``span`` ``(lo, hi)`` and their rotations
-    ``frame`` ``(hi - lo,)`` mat33d at the linearization factorized (on the device)."""
+    ``frame`` ``(hi - lo,)`` mat33d at the linearization factorized (on the device); ``held``: the
+    device arrays its copies read, kept until they are done."""
 
     block: int
     world: int
@@ -120,6 +176,7 @@ class Job:
     id: int
     span: tuple[int, int]
     frame: wp.array
+    held: tuple = ()
 
 
 class Refactorizer:
@@ -133,12 +190,16 @@ class Refactorizer:
         lag: boundaries between a block's submission and its installation (0: the same one).
         panel_rows: the panels' rows (:meth:`~warpsoft.linear.supernodal.Supernodal.panels`).
         dtype: the values' numpy type.
+        device: the model's device (CUDA: the copies to the workers on a stream of their own, into
+            page-locked shared memory).
 
     Attributes: ``workers`` (processes; 0: none), ``boundary`` (the boundaries counted), ``pending``
-    (block -> :class:`Job`), ``waited`` (seconds the host waited on workers, in all), ``submitted``.
+    (block -> :class:`Job`), ``waited`` (seconds the host waited on workers, in all), ``submitted``,
+    ``page_locked`` (whether the shared memory is: the copies then run beside the step).
     """
 
-    def __init__(self, blocks: dict[int, Block], arenas: list[int], lag: int, panel_rows: int, dtype: type):
+    def __init__(self, blocks: dict[int, Block], arenas: list[int], lag: int, panel_rows: int, dtype: type,
+                 device=None):
         if lag < 0:
             raise ValueError(f"Refactorizer: the lag is a count of step boundaries, got {lag}")
         self.lag, self.panel_rows, self.dtype = int(lag), int(panel_rows), dtype
@@ -160,49 +221,63 @@ class Refactorizer:
             proc.start()
             child.close()
             self._procs.append((proc, parent))
-        self._finalizer = weakref.finalize(self, _shut_down, self._procs)
+        device = wp.get_device(device)
+        # (after the fork: CUDA may keep page-locked memory out of forked children)
+        self._locked = _page_lock(device, self._arenas)
+        self.page_locked = bool(self._locked) and len(self._locked) == len(self._arenas)
+        self._side = wp.Stream(device) if device.is_cuda else None  # the copies to the workers
+        self._finalizer = weakref.finalize(self, _shut_down, self._procs, self._locked, device, self._arenas)
 
     @staticmethod
     def layout(elements: dict[int, int], values: dict[int, tuple[int, int]], workers: int,
                itemsize: int) -> tuple[dict, list[int]]:
         """Each block's places in its worker's shared memory: ``elements`` block -> its element
         blocks' numbers (float64), ``values`` block -> its forward and backward values (of
-        ``itemsize`` bytes). Returns block -> ``(elements (offset, count), values ((offset, count),
-        (offset, count)))`` and each arena's bytes (``workers`` of them, or one with 1 or less)."""
+        ``itemsize`` bytes). Returns block -> ``(ready, elements (offset, count), values ((offset,
+        count), (offset, count)))`` and each arena's bytes (``workers`` of them, or one with 1 or
+        less)."""
         arenas = max(int(workers), 1)
         sizes, places = [0] * arenas, {}
         for b in sorted(elements):
             k = b % arenas
-            at = sizes[k]
+            ready = sizes[k]
+            at = ready + 8
             forward, backward = values[b]
             f0 = at + 8 * elements[b]
             b0 = f0 + -(-itemsize * forward // 8) * 8
-            places[b] = ((at, elements[b]), ((f0, forward), (b0, backward)))
+            places[b] = (ready, (at, elements[b]), ((f0, forward), (b0, backward)))
             sizes[k] = b0 + -(-itemsize * backward // 8) * 8
         return places, sizes
 
     def submit(self, block: int, world: int, elements: wp.array, stiffness_scale: float, mass_scale: float,
                span: tuple[int, int], frame: wp.array) -> None:
         """Refactorize ``block`` (of ``world``) at its world's element blocks ``elements`` ``(16 e,)``
-        mat33d (on the device), with the operator's scales, to install ``lag`` boundaries after the
-        current one; ``span`` and ``frame`` as :class:`Job`'s."""
+        mat33d (on the device, kept until copied), with the operator's scales, to install ``lag``
+        boundaries after the current one; ``span`` and ``frame`` as :class:`Job`'s."""
         info, k = self.blocks[block], block % max(self.workers, 1)
-        arena = self._arenas[k]
+        arena, job = self._arenas[k], self.submitted
         offset, count = info.elements
-        shared = np.frombuffer(arena, np.float64, count, offset).reshape(-1, 3, 3)
-        wp.copy(wp.array(shared, dtype=wp.mat33d, device="cpu", copy=False), elements)  # (straight into it)
-        job = self.submitted
+        shared = wp.array(np.frombuffer(arena, np.float64, count, offset).reshape(-1, 3, 3), dtype=wp.mat33d,
+                          device="cpu", copy=False)
+        mark = wp.full(1, job + 1, dtype=wp.int64, device=elements.device)  # (copied after the blocks)
+        if self._side is not None:  # (after the work that made them, beside what follows)
+            self._side.wait_event(wp.get_stream(elements.device).record_event())
+        wp.copy(shared, elements, stream=self._side)
+        wp.copy(wp.array(np.frombuffer(arena, np.int64, 1, info.ready), dtype=wp.int64, device="cpu", copy=False),
+                mark, stream=self._side)
         if self.workers:
             self._procs[k][1].send((job, block, float(stiffness_scale), float(mass_scale)))
             self._queues[k].append(job)
         else:
+            if self._side is not None:
+                wp.synchronize_stream(self._side)
             with threadpool_limits(1):
                 try:
                     refactor(self._cache, arena, block, info, stiffness_scale, mass_scale, self.panel_rows, self.dtype)
                     self._errors[job] = None
                 except ArithmeticError as e:  # raised where the job is installed, as a worker's would be
                     self._errors[job] = e
-        self.pending[block] = Job(block, world, self.boundary + self.lag, job, span, frame)
+        self.pending[block] = Job(block, world, self.boundary + self.lag, job, span, frame, (elements, mark))
         self.submitted += 1
 
     def due(self) -> list[Job]:
@@ -243,6 +318,8 @@ class Refactorizer:
     def cancel(self) -> None:
         """Forget the pending jobs (a refresh of every block made them stale); their workers'
         answers are read and dropped with the next ones."""
+        if self._side is not None:  # (their copies done before their arrays go)
+            wp.synchronize_stream(self._side)
         for job in self.pending.values():
             if job.id in self._errors:
                 del self._errors[job.id]
@@ -252,12 +329,34 @@ class Refactorizer:
 
     def close(self) -> None:
         """Stop the workers."""
-        self.pending.clear()
+        self.cancel()
         self._finalizer()
 
 
-def _shut_down(procs: list) -> None:
-    """Tell each worker to stop, and end those that do not within a second."""
+def _page_lock(device, arenas: list) -> list[int]:
+    """Page-lock each arena for ``device``'s copies (``cuMemHostRegister``: a copy from the device
+    into it then runs beside other work instead of through the driver's staging); returns the
+    addresses locked, none where the device is not CUDA or the driver refuses (the copies are then
+    pageable: the same results, in the step's time)."""
+    if not device.is_cuda:
+        return []
+    try:
+        driver = ctypes.CDLL("libcuda.so.1")
+    except OSError:
+        return []
+    locked = []
+    with wp.ScopedDevice(device):  # (its context current for the driver's call)
+        for arena in arenas:
+            address = np.frombuffer(arena, np.uint8).ctypes.data
+            size = ctypes.c_size_t(len(arena))
+            if driver.cuMemHostRegister_v2(ctypes.c_void_p(address), size, ctypes.c_uint(0)) == 0:  # (CUDA_SUCCESS)
+                locked.append(address)
+    return locked
+
+
+def _shut_down(procs: list, locked: list[int], device, arenas: list) -> None:
+    """Tell each worker to stop, and end those that do not within a second; unlock the arenas'
+    pages (``arenas`` kept alive until then)."""
     for _, conn in procs:
         try:
             conn.send(None)
@@ -269,3 +368,12 @@ def _shut_down(procs: list) -> None:
             proc.terminate()
         conn.close()
     procs.clear()
+    if locked:
+        try:
+            driver = ctypes.CDLL("libcuda.so.1")
+            with wp.ScopedDevice(device):
+                for address in locked:
+                    driver.cuMemHostUnregister(ctypes.c_void_p(address))
+        except Exception:  # (at interpreter exit the driver may be gone: the process's end frees them)
+            pass
+        locked.clear()
