@@ -373,17 +373,19 @@ class WorldFactors(WorldGroups):
             return 0
         refactor.lag = self.world_lag
         refactor.next_boundary()
-        for b in np.flatnonzero(self._due) if self._due is not None else []:
-            if b in refactor.pending:  # (its count still grows on the old factor)
-                continue
-            w = int(self.first_world[b])
-            e0, e1 = int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])
-            blocks = wp.empty(16 * (e1 - e0), dtype=wp.mat33d, device=d)
-            self.op.elastic.blocks(self.op.rot, blocks, (e0, e1))
-            lo, hi = int(m.world_node_start[w]), int(m.world_node_start[w + 1])
-            frame = wp.empty(hi - lo, dtype=wp.mat33d, device=d)  # its nodes' rotations at this linearization
-            wp.copy(frame, self.node_rot, src_offset=lo, count=hi - lo)
-            refactor.submit(int(b), w, blocks, self.op.stiffness_scale, self.op.mass_scale, (lo, hi), frame)
+        # (a block being made is not sent again: its count still grows on the old factor)
+        due = [] if self._due is None else [int(b) for b in np.flatnonzero(self._due) if int(b) not in refactor.pending]
+        if due:  # their worlds' element blocks, one world after another, and every node's rotation now
+            worlds = [int(self.first_world[b]) for b in due]
+            ranges = [(int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])) for w in worlds]
+            blocks = wp.empty(sum(16 * (e1 - e0) for e0, e1 in ranges), dtype=wp.mat33d, device=d)
+            at = 0
+            for e0, e1 in ranges:
+                self.op.elastic.blocks(self.op.rot, blocks[at:at + 16 * (e1 - e0)], (e0, e1))
+                at += 16 * (e1 - e0)
+            spans = [(int(m.world_node_start[w]), int(m.world_node_start[w + 1])) for w in worlds]
+            refactor.submit(due, worlds, blocks, self.op.stiffness_scale, self.op.mass_scale, spans,
+                            wp.clone(self.node_rot))
         if self._due is not None:
             self._due[:] = False
         jobs = refactor.due()
@@ -392,7 +394,7 @@ class WorldFactors(WorldGroups):
             # (_factorized names the world of an error; the worker has checked the ordering itself)
             _, *values = self._factorized(m, b, job.world, lambda j=job: (self.orders[j.block], *refactor.values(j)))
             for (_, _, val, _, _), start, v in zip(self.solves, self._value_start, values, strict=True):
-                val[int(start[b]):int(start[b + 1])].assign(v)  # (from the shared memory)
+                wp.copy(val, v, dest_offset=int(start[b]), count=v.size)  # (from the shared memory)
             self._world_first[job.world] = 0
         if jobs:
             self.take_frame([job.span for job in jobs], [job.frame for job in jobs])

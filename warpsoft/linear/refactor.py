@@ -22,7 +22,8 @@ worker processes do it while the device runs the steps:
   fast the host was; with a lag of 0 the factor is installed at the boundary that found it due.
 
 Each block has its worker (its index modulo the workers) and its place in that worker's shared
-memory (its mark, its element blocks, then its values), laid out when the workers are forked:
+memory (after a header: the blocks it analysed ahead; its mark, its element blocks, then its
+values), laid out when the workers are forked:
 they inherit each block's pattern, ordering and masses, and send back only a status. A worker
 analyses its blocks' supernodes while it has nothing to do (:func:`warm`, on a made-up matrix of
 the pattern: the supernodes depend on the pattern alone), so that a block's first refactorization
@@ -144,6 +145,7 @@ def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type) -> None:
     _WORKER_LIMITS.append(threadpool_limits(1))  # one BLAS thread: small products, and the workers fill the cores
     cache = {}
     cold = sorted(blocks)
+    analysed = np.frombuffer(arena, np.int64, 1, 0)  # (the arena's header: the blocks tried ahead)
     while True:
         while cold and not conn.poll():
             b = cold.pop(0)
@@ -151,6 +153,7 @@ def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type) -> None:
                 warm(cache, b, blocks[b])
             except Exception:  # (its first job analyses it, and reports what fails)
                 cache.pop(b, None)
+            analysed[0] += 1
         message = conn.recv()
         if message is None:
             return
@@ -167,8 +170,8 @@ def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type) -> None:
 class Job:
     """A block being refactorized: ``block`` and its ``world``, the boundary it is installed at
     (``at``), its number ``id``, the world's nodes ``span`` ``(lo, hi)`` and their rotations
-    ``frame`` ``(hi - lo,)`` mat33d at the linearization factorized (on the device); ``held``: the
-    device arrays its copies read, kept until they are done."""
+    ``frame`` ``(nodes,)`` mat33d at the linearization factorized (every node's, on the device);
+    ``held``: the device arrays its copies read, kept until they are done."""
 
     block: int
     world: int
@@ -211,6 +214,7 @@ class Refactorizer:
         self._dropped: set[int] = set()  # jobs cancelled before their answer was read
         self._queues = [deque() for _ in arenas]  # per worker, its jobs' ids in the order sent
         self._cache: dict = {}  # this process's analyses (no workers)
+        self._view: dict = {}  # block -> its places as CPU arrays (:meth:`_views`)
         self._procs = []
         context = multiprocessing.get_context("fork") if self.workers else None
         for k in range(self.workers):  # forked: they run CHOLMOD and numpy, never Warp or CUDA
@@ -237,7 +241,7 @@ class Refactorizer:
         count), (offset, count)))`` and each arena's bytes (``workers`` of them, or one with 1 or
         less)."""
         arenas = max(int(workers), 1)
-        sizes, places = [0] * arenas, {}
+        sizes, places = [8] * arenas, {}  # (each arena's header: the blocks its worker analysed ahead)
         for b in sorted(elements):
             k = b % arenas
             ready = sizes[k]
@@ -249,36 +253,77 @@ class Refactorizer:
             sizes[k] = b0 + -(-itemsize * backward // 8) * 8
         return places, sizes
 
-    def submit(self, block: int, world: int, elements: wp.array, stiffness_scale: float, mass_scale: float,
-               span: tuple[int, int], frame: wp.array) -> None:
-        """Refactorize ``block`` (of ``world``) at its world's element blocks ``elements`` ``(16 e,)``
-        mat33d (on the device, kept until copied), with the operator's scales, to install ``lag``
-        boundaries after the current one; ``span`` and ``frame`` as :class:`Job`'s."""
-        info, k = self.blocks[block], block % max(self.workers, 1)
-        arena, job = self._arenas[k], self.submitted
-        offset, count = info.elements
-        shared = wp.array(np.frombuffer(arena, np.float64, count, offset).reshape(-1, 3, 3), dtype=wp.mat33d,
-                          device="cpu", copy=False)
-        mark = wp.full(1, job + 1, dtype=wp.int64, device=elements.device)  # (copied after the blocks)
+    def _views(self, block: int) -> tuple[wp.array, wp.array, tuple[wp.array, wp.array]]:
+        """Block ``block``'s places in its arena as CPU arrays (made once): its element blocks
+        (mat33d), its mark (int64) and its forward and backward values."""
+        views = self._view.get(block)
+        if views is None:
+            info, arena = self.blocks[block], self._arenas[block % max(self.workers, 1)]
+            offset, count = info.elements
+            kind = wp.dtype_from_numpy(np.dtype(self.dtype))
+            views = self._view[block] = (
+                wp.array(np.frombuffer(arena, np.float64, count, offset).reshape(-1, 3, 3), dtype=wp.mat33d,
+                         device="cpu", copy=False),
+                wp.array(np.frombuffer(arena, np.int64, 1, info.ready), dtype=wp.int64, device="cpu", copy=False),
+                tuple(wp.array(np.frombuffer(arena, self.dtype, n, o), dtype=kind, device="cpu", copy=False)
+                      for o, n in info.values))
+        return views
+
+    def submit(self, blocks: list[int], worlds: list[int], elements: wp.array, stiffness_scale: float,
+               mass_scale: float, spans: list[tuple[int, int]], frame: wp.array) -> None:
+        """Refactorize each of ``blocks`` (of ``worlds``) at its world's element blocks, to install
+        ``lag`` boundaries after the current one. ``elements``: mat33d on the device (kept until
+        copied), the worlds' element blocks one world after another (each world's ``16 e``, in the
+        order of ``blocks``); the operator's scales; ``spans``: each world's nodes ``(lo, hi)``;
+        ``frame``: ``(nodes,)`` mat33d, every node's rotation at the linearization factorized (kept
+        on the device until installed)."""
+        first = self.submitted
+        marks = wp.array(np.arange(first + 1, first + 1 + len(blocks), dtype=np.int64), dtype=wp.int64,
+                         device=elements.device)  # (each copied after its blocks)
         if self._side is not None:  # (after the work that made them, beside what follows)
             self._side.wait_event(wp.get_stream(elements.device).record_event())
-        wp.copy(shared, elements, stream=self._side)
-        wp.copy(wp.array(np.frombuffer(arena, np.int64, 1, info.ready), dtype=wp.int64, device="cpu", copy=False),
-                mark, stream=self._side)
+        at = 0
+        for i, (block, world, span) in enumerate(zip(blocks, worlds, spans, strict=True)):
+            shared, mark, _ = self._views(block)
+            wp.copy(shared, elements, src_offset=at, count=shared.size, stream=self._side)
+            wp.copy(mark, marks, src_offset=i, count=1, stream=self._side)
+            at += shared.size
+            job, k = first + i, block % max(self.workers, 1)
+            if self.workers:
+                self._procs[k][1].send((job, block, float(stiffness_scale), float(mass_scale)))
+                self._queues[k].append(job)
+            self.pending[block] = Job(block, world, self.boundary + self.lag, job, span, frame, (elements, marks))
+        if at != elements.size:
+            raise ValueError(f"Refactorizer: {elements.size} element blocks given, the blocks' worlds have {at}")
+        self.submitted += len(blocks)
         if self.workers:
-            self._procs[k][1].send((job, block, float(stiffness_scale), float(mass_scale)))
-            self._queues[k].append(job)
-        else:
-            if self._side is not None:
-                wp.synchronize_stream(self._side)
-            with threadpool_limits(1):
+            return
+        if self._side is not None:
+            wp.synchronize_stream(self._side)
+        with threadpool_limits(1):
+            for i, block in enumerate(blocks):
                 try:
-                    refactor(self._cache, arena, block, info, stiffness_scale, mass_scale, self.panel_rows, self.dtype)
-                    self._errors[job] = None
+                    refactor(self._cache, self._arenas[0], block, self.blocks[block], stiffness_scale, mass_scale,
+                             self.panel_rows, self.dtype)
+                    self._errors[first + i] = None
                 except ArithmeticError as e:  # raised where the job is installed, as a worker's would be
-                    self._errors[job] = e
-        self.pending[block] = Job(block, world, self.boundary + self.lag, job, span, frame, (elements, mark))
-        self.submitted += 1
+                    self._errors[first + i] = e
+
+    def settle(self, timeout: float = 600.0) -> float:
+        """Wait until every worker has analysed its blocks ahead (:func:`warm`); returns the seconds
+        waited. (A benchmark's timed steps then see what a long run's do.)"""
+        start = time.perf_counter()
+        for k, (proc, _) in enumerate(self._procs):
+            mine = sum(1 for b in self.blocks if b % self.workers == k)
+            analysed = np.frombuffer(self._arenas[k], np.int64, 1, 0)
+            while analysed[0] < mine:
+                if not proc.is_alive():
+                    raise RuntimeError(f"Refactorizer: worker {k} stopped (exit code {proc.exitcode})")
+                if time.perf_counter() - start > timeout:
+                    raise RuntimeError(f"Refactorizer: worker {k} analysed {analysed[0]} of {mine} blocks in "
+                                       f"{timeout} s")
+                time.sleep(1e-3)
+        return time.perf_counter() - start
 
     def due(self) -> list[Job]:
         """The jobs to install at the current boundary (in block order), taken off ``pending``,
@@ -302,14 +347,13 @@ class Refactorizer:
         self.waited += time.perf_counter() - start
         return jobs
 
-    def values(self, job: Job) -> tuple[np.ndarray, np.ndarray]:
-        """A job's forward and backward values (views of the shared memory, until its block is sent
-        again); raises its worker's error."""
+    def values(self, job: Job) -> tuple[wp.array, wp.array]:
+        """A job's forward and backward values (CPU arrays over the shared memory, until its block
+        is sent again); raises its worker's error."""
         error = self._errors.pop(job.id)
         if error is not None:
             raise error
-        arena = self._arenas[job.block % max(self.workers, 1)]
-        return tuple(np.frombuffer(arena, self.dtype, count, offset) for offset, count in self.blocks[job.block].values)
+        return self._views(job.block)[2]
 
     def next_boundary(self) -> None:
         """Count a step boundary."""

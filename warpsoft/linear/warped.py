@@ -94,8 +94,8 @@ class WarpedFrames:
     def take_frame(self, spans: list[tuple[int, int]] | None = None, frames: list[wp.array] | None = None) -> None:
         """After a factorization at the current rotations: they become the frame (``Q = I``), of
         every node, or of the nodes ``lo:hi`` of each of ``spans`` (worlds refactorized alone); or,
-        with ``frames`` (``(hi - lo,)`` mat33d each), those rotations (of an earlier linearization,
-        the one factorized)."""
+        with ``frames`` (``(nodes,)`` mat33d each: every node's rotation at an earlier linearization,
+        the one factorized), those nodes' rotations there."""
         m = self.op.model
         if spans is None:
             wp.copy(self.frame, self.node_rot)
@@ -103,7 +103,7 @@ class WarpedFrames:
             if frames is None:
                 wp.copy(self.frame, self.node_rot, dest_offset=lo, src_offset=lo, count=hi - lo)
             else:
-                wp.copy(self.frame, frames[k], dest_offset=lo, count=hi - lo)
+                wp.copy(self.frame, frames[k], dest_offset=lo, src_offset=lo, count=hi - lo)
         launch(kernels.relative_node_rotations(self.q_rot.dtype), m.num_nodes, inputs=[self.node_sum, self.frame],
                outputs=[self.node_rot, self.q_rot], device=m.device)
         if spans is None:
