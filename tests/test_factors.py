@@ -418,8 +418,8 @@ def test_a_block_analysed_ahead_refactorizes_as_one_analysed_at_its_first():
         arena, cache = mmap.mmap(-1, end), {}
         np.frombuffer(arena, np.float64, local.elements[1], place)[:] = blocks.numpy().ravel()
         if ahead:
-            refactor.warm(cache, b, local)
-            assert cache[b][1] is not None  # analysed before any real system
+            refactor.warm(cache, b, local, pre.panel_rows)
+            assert cache[b][1] is not None and pre.panel_rows in cache[b][1]._layouts  # before any real system
         refactor.refactor(cache, arena, b, local, 2.0, 0.0, pre.panel_rows, np.float32)
         panels.append([np.frombuffer(arena, np.float32, n, o).copy() for o, n in local.values])
         supernodes.append(cache[b][1])

@@ -55,6 +55,15 @@ def designs(count: int, meshes: int) -> list[dict]:
              "cable_displacements": (0.004, 0.0, 0.002, 0.0), "ramp_time": 0.05} for k in range(count)]
 
 
+def _job_times(info: dict) -> str:
+    """The workers' refactorizations in the timed steps (median, p90 and longest), for the report."""
+    if "refactor_job_ms" not in info:
+        return ""
+    median, p90, most = info["refactor_job_ms"]
+    landed = info["refactor_landing_ms"][1]
+    return f"; a job {median:.1f} ms (p90 {p90:.1f}, most {most:.1f}), its blocks landed within {landed:.1f} ms"
+
+
 def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: bool = False,
                 **options) -> tuple[float, int, dict]:
     """Median step time (s) of ``scenes`` as one model, its DOFs, and what the solve did: the CG
@@ -70,6 +79,7 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
     pre = getattr(sim.solver, "precond", None)
     refactor = getattr(pre, "refactorizer", None)  # a world's own refresh: its workers' analyses ahead,
     settled = refactor.settle() if refactor is not None else 0.0  # done before the timed steps as in a long run
+    answered = len(refactor.working) if refactor is not None else 0
     setup = time.perf_counter() - t0
     times, its, world_its, graphs, refresh = [], [], [], [], []
     refreshed = getattr(pre, "world_refreshes", 0)
@@ -84,6 +94,10 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
     refreshed = getattr(pre, "world_refreshes", 0) - refreshed  # (the timed steps')
     waited = {"refactor_waited_s": refactor.waited, "refactor_submitted": refactor.submitted,
               "refactor_page_locked": refactor.page_locked, "refactor_settle_s": settled} if refactor else {}
+    if refactor is not None and len(refactor.working) > answered:  # the timed steps' jobs, in the workers
+        work, land = 1e3 * np.array(refactor.working[answered:]), 1e3 * np.array(refactor.landing[answered:])
+        waited |= {"refactor_job_ms": [float(np.median(work)), float(np.percentile(work, 90)), float(work.max())],
+                   "refactor_landing_ms": [float(np.median(land)), float(land.max())]}
     if kernels and sim.model.device.is_cuda:
         parts = {"kernels": uncaptured_kernels(sim)}
     else:
@@ -212,6 +226,7 @@ def main(argv=None) -> int:
               f"graphs {info.get('graph_ms', 0):.2f} ms  mean step {info['step_mean_ms']:.2f} ms  "
               f"world refreshes {info['world_refreshes']} ({info['refresh_ms']:.2f} ms a step, "
               f"waited {info.get('refactor_waited_s', 0):.2f} s in all"
+              f"{_job_times(info)}"
               f"{', page-locked' if info.get('refactor_page_locked') else ''})", flush=True)
     alone = None
     if args.alone:
