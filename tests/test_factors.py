@@ -324,7 +324,7 @@ def test_a_world_whose_cg_grew_is_refactorized_alone():
     sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
     sim.step()
     pre = WorldFactors(sim.operator, 3, "float64", share=False)
-    assert pre.world_floor is None and pre.world_lag == factors.WORLD_LAG == 1  # (off by default)
+    assert pre.world_floor is None and pre.world_lag == factors.WORLD_LAG == 2  # (off by default)
     pre.world_floor, pre.world_lag = 10, 0
     pre.prepare()  # factorized at the first step's state
     for _ in range(3):
@@ -358,7 +358,7 @@ def test_a_world_refactorized_beside_the_step_is_installed_a_boundary_later():
     sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
     sim.step()
     pre = WorldFactors(sim.operator, 3, "float64", share=False)
-    pre.world_floor = 10
+    pre.world_floor, pre.world_lag = 10, 1
     pre.prepare()
     for _ in range(2):
         sim.step()
@@ -444,7 +444,7 @@ def test_a_world_refactorized_alone_not_positive_definite_names_its_world(monkey
     sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
     sim.step()
     pre = WorldFactors(sim.operator, 3, "float64", share=False)
-    pre.world_floor = 10
+    pre.world_floor, pre.world_lag = 10, 1  # (reported at the next boundary)
     pre.prepare()
     pre.observe_worlds(np.array([6, 6, 6, 6]))
     pre.observe_worlds(np.array([6, 6, 13, 6]))

@@ -81,11 +81,12 @@ POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CP
 # needed more than WORLD_RATIO times the iterations of its first solve after its block's last
 # factorization, and more than WORLD_FLOOR (None: never), by worker processes beside the steps and
 # installed WORLD_LAG step boundaries later (warpsoft/linear/refactor.py). Off by default: on the H200,
-# 1024 Diamonds, a floor of 10 takes the graphs from 53.0 to 48.4 ms (44.2 ms at the last step) and the
-# slowest world's CG from 17 to 11, but the host's share of its 132 refreshes (each world's element
-# blocks, 4.6 MB, copied to pageable shared memory: ~6 ms each) still cost 150-500 ms a step
-# (docs/performance.md)
-WORLD_RATIO, WORLD_FLOOR, WORLD_LAG = 2.0, None, 1
+# 1024 Diamonds, a floor of 10 with a lag of 2 gives 45.0-47.4 ms steps once the refreshes are made
+# (51.9-54.7 ms without), but the 10-step median only breaks even (55.60 against 56.1-56.2 ms): the
+# refreshes' transient, about 0.4 ms of host time a job; and it forks a worker a core, with 6 GB of
+# page-locked memory for those 1024 worlds (docs/performance.md). A lag of 2: the workers were waited for
+# 0.03 s in those 10 steps, 0.16 s with a lag of 1
+WORLD_RATIO, WORLD_FLOOR, WORLD_LAG = 2.0, None, 2
 
 
 def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str,
