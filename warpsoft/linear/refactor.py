@@ -211,7 +211,7 @@ class Refactorizer:
     """
 
     def __init__(self, blocks: dict[int, Block], arenas: list[int], lag: int, panel_rows: int, dtype: type,
-                 device=None):
+                 device):
         if lag < 0:
             raise ValueError(f"Refactorizer: the lag is a count of step boundaries, got {lag}")
         self.lag, self.panel_rows, self.dtype = int(lag), int(panel_rows), dtype
