@@ -325,7 +325,7 @@ def test_a_world_whose_cg_grew_is_refactorized_alone():
     sim.step()
     pre = WorldFactors(sim.operator, 3, "float64", share=False)
     assert pre.world_floor is None and pre.world_lag == factors.WORLD_LAG == 2  # (off by default)
-    pre.world_floor, pre.world_lag = 10, 0
+    pre.world_floor, pre.world_ratio, pre.world_lag = 10, 2.0, 0
     pre.prepare()  # factorized at the first step's state
     for _ in range(3):
         sim.step()
@@ -333,7 +333,6 @@ def test_a_world_whose_cg_grew_is_refactorized_alone():
     assert pre.refresh_worlds() == 0  # nothing observed, nothing due
     pre.observe_worlds(np.array([6, 6, 6, 6]))  # each world's first solve after its factorization
     pre.observe_worlds(np.array([6, 6 * 2 + 1, 6, 12]))  # world 1: more than twice and than the floor
-    assert pre.world_ratio == factors.WORLD_RATIO == 2.0
     assert pre.refresh_worlds() == 1 and pre.world_refreshes == 1 and pre.refreshes == 1
     host = WarpedFactor(sim.operator, 3, "host")
     host.prepare()  # the whole model factorized at the current state
@@ -348,6 +347,32 @@ def test_a_world_whose_cg_grew_is_refactorized_alone():
         assert (error < 1e-9) if w == 1 else (error > 1e-6), (w, error)
     assert np.allclose(pre.q_rot.numpy()[sim.model.world_nodes(1)], np.eye(3), atol=1e-12)
     assert pre.refresh_worlds() == 0  # done: nothing due until its count grows again
+
+
+def test_a_boundary_sends_the_slowest_worlds_first_and_at_most_its_batch():
+    """With a batch of one block a boundary, of two worlds due the one whose CG took more goes
+    first (its frame becomes its current rotations); the other, still grown at its next solve,
+    goes at the next boundary."""
+    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
+    sim.step()
+    pre = WorldFactors(sim.operator, 3, "float64", share=False)
+    assert pre.world_batch == factors.WORLD_BATCH == 16
+    pre.world_floor, pre.world_lag, pre.world_batch = 10, 0, 1
+    pre.prepare()
+    for _ in range(3):
+        sim.step()
+    pre.prepare()
+
+    def turned(w: int) -> bool:  # world w's nodes turned from the frame of its factor
+        return not np.allclose(pre.q_rot.numpy()[sim.model.world_nodes(w)], np.eye(3), atol=1e-12)
+
+    assert turned(1) and turned(3)  # (both moved since their factorization)
+    pre.observe_worlds(np.array([6, 6, 6, 6]))
+    pre.observe_worlds(np.array([6, 13, 6, 15]))  # worlds 1 and 3 due, 3 the slower
+    assert pre.refresh_worlds() == 1 and not turned(3) and turned(1)
+    pre.observe_worlds(np.array([6, 13, 6, 6]))  # (world 3's first solve on its new factor)
+    assert pre.refresh_worlds() == 1 and not turned(1) and pre.world_refreshes == 2
+    assert pre.refresh_worlds() == 0
 
 
 def test_a_world_refactorized_beside_the_step_is_installed_a_boundary_later():

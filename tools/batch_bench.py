@@ -6,10 +6,11 @@ against the batch size, and a batch against the same designs stepped one at a ti
 The designs are Diamonds driven directly by their four cables (a step input held), each its own
 leg radius (``--meshes`` different meshes, cycled) and Young's modulus (log-spaced over 0.1-0.3
 MPa). Per batch size: the model's DOFs, the step's median (ms) after ``--warmup`` steps, and the
-design-steps per second (designs / step time). ``--alone K``: the first K designs one at a time
-(the sum of their medians) against the batch of the same K. ``--kernels`` (CUDA): after the timed
-steps, one more step uncaptured with each kernel and copy timed (batch.json's ``kernels``, and
-kernels.md). Writes batch.json and batch.md.
+design-steps per second (designs / step time), and over the whole run (designs / the timed steps'
+mean: what a sweep of that many steps gets, its refactorizations included). ``--alone K``: the
+first K designs one at a time (the sum of their medians) against the batch of the same K.
+``--kernels`` (CUDA): after the timed steps, one more step uncaptured with each kernel and copy
+timed (batch.json's ``kernels``, and kernels.md). Writes batch.json and batch.md.
 """
 
 from __future__ import annotations
@@ -186,6 +187,12 @@ def main(argv=None) -> int:
     ap.add_argument("--world-lag", type=int, default=None,
                     help="factors: the step boundaries between a world's factor sent to a worker and its "
                          "installation (default warpsoft.linear.factors.WORLD_LAG)")
+    ap.add_argument("--world-batch", type=int, default=None,
+                    help="factors: the most worlds' factors sent to be made anew at one step boundary, the "
+                         "slowest first (default warpsoft.linear.factors.WORLD_BATCH; 0: every one due)")
+    ap.add_argument("--world-ratio", type=float, default=None,
+                    help="factors: how many times its first solve's iterations a world's CG must take for its "
+                         "factor to be made anew (default warpsoft.linear.factors.WORLD_RATIO)")
     ap.add_argument("--kernels", action="store_true",
                     help="CUDA: time each kernel and copy of one more step, uncaptured (kernels.md)")
     ap.add_argument("--out", default="out/batch")
@@ -198,6 +205,10 @@ def main(argv=None) -> int:
         factors.WORLD_FLOOR = args.world_floor or None
     if args.world_lag is not None:
         factors.WORLD_LAG = args.world_lag
+    if args.world_batch is not None:
+        factors.WORLD_BATCH = args.world_batch or None
+    if args.world_ratio is not None:
+        factors.WORLD_RATIO = args.world_ratio
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
     if args.workers > 1 and not os.environ.get("WARPSOFT_MESH_CACHE"):
         ap.error("--workers meshes ahead into the mesh cache: set WARPSOFT_MESH_CACHE to a folder")
@@ -216,6 +227,7 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         median, dofs, info = step_median(scenes[:n], args.device, args.steps, args.warmup, args.kernels, **options)
         rows.append({"designs": n, "dofs": dofs, "step_ms": 1e3 * median, "design_steps_per_s": n / median,
+                     "run_design_steps_per_s": 1e3 * n / info["step_mean_ms"],
                      "wall_s": time.perf_counter() - t0, **info})
         print(f"batch {n:5d}: {dofs:8d} DOFs  step {1e3 * median:8.2f} ms  {n / median:9.1f} design-steps/s  "
               f"CG {info['cg_iterations']:.0f} (a world's mean {info['world_cg_iterations']:.1f})  "
@@ -223,7 +235,8 @@ def main(argv=None) -> int:
               f"{info['precond_mb']:.0f} MB  setup {info['setup_s']:.1f} s  "
               f"P^-1 {info.get('precond_ms', 0):.2f} ms  A {info.get('operator_ms', 0):.2f} ms  "
               f"assembly {info.get('assemble_ms', 0):.2f} ms  "
-              f"graphs {info.get('graph_ms', 0):.2f} ms  mean step {info['step_mean_ms']:.2f} ms  "
+              f"graphs {info.get('graph_ms', 0):.2f} ms  mean step {info['step_mean_ms']:.2f} ms "
+              f"({1e3 * n / info['step_mean_ms']:.1f} design-steps/s over the run)  "
               f"world refreshes {info['world_refreshes']} ({info['refresh_ms']:.2f} ms a step, "
               f"waited {info.get('refactor_waited_s', 0):.2f} s in all"
               f"{_job_times(info)}"

@@ -80,13 +80,14 @@ POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CP
 # a world's own refresh (panels): its block is factorized anew at its state, between steps, when its CG
 # needed more than WORLD_RATIO times the iterations of its first solve after its block's last
 # factorization, and more than WORLD_FLOOR (None: never), by worker processes beside the steps and
-# installed WORLD_LAG step boundaries later (warpsoft/linear/refactor.py). Off by default: on the H200,
-# 1024 Diamonds, a floor of 10 with a lag of 2 gives 45.0-47.4 ms steps once the refreshes are made
-# (51.9-54.7 ms without), but the 10-step median only breaks even (55.60 against 56.1-56.2 ms): the
-# refreshes' transient, about 0.4 ms of host time a job; and it forks a worker a core, with 6 GB of
-# page-locked memory for those 1024 worlds (docs/performance.md). A lag of 2: the workers were waited for
-# 0.03 s in those 10 steps, 0.16 s with a lag of 1
-WORLD_RATIO, WORLD_FLOOR, WORLD_LAG = 2.0, None, 2
+# installed WORLD_LAG step boundaries later (warpsoft/linear/refactor.py); at most WORLD_BATCH blocks
+# sent at one boundary (None: every one due), the slowest worlds' first (a fixed number, so that a
+# trajectory never depends on the machine's cores). Off by default: on the H200, 1024 Diamonds, a
+# floor of 10 with a lag of 2 gives 45.0-47.4 ms steps once the refreshes are made (51.9-54.7 ms
+# without), but the 10-step median only breaks even (55.60 against 56.1-56.2 ms); and it forks a
+# worker a core, with 6 GB of page-locked memory for those 1024 worlds (docs/performance.md). A lag
+# of 2: the workers were waited for 0.03 s in those 10 steps, 0.16 s with a lag of 1
+WORLD_RATIO, WORLD_FLOOR, WORLD_LAG, WORLD_BATCH = 2.0, None, 2, 16
 
 
 def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str,
@@ -149,8 +150,9 @@ class WorldFactors(WorldGroups):
     ``world_ratio`` and ``world_floor`` (when a world's block is refactorized alone:
     :meth:`observe_worlds`; from :data:`WORLD_RATIO`, :data:`WORLD_FLOOR`; a floor None: never),
     ``world_lag`` (the step boundaries between a block found due and its new factor installed,
-    :data:`WORLD_LAG`), ``world_refreshes`` (the blocks refactorized alone and installed, in all),
-    ``refactorizer`` (their :class:`~warpsoft.linear.refactor.Refactorizer`, made at the first).
+    :data:`WORLD_LAG`), ``world_batch`` (the most blocks sent at one boundary, the slowest worlds'
+    first, :data:`WORLD_BATCH`; None: all due), ``world_refreshes`` (the blocks refactorized alone
+    and installed, in all), ``refactorizer`` (their :class:`~warpsoft.linear.refactor.Refactorizer`, made at the first).
     """
 
     capturable = True
@@ -219,9 +221,11 @@ class WorldFactors(WorldGroups):
         # test of a task's world: its lanes wait for one load fewer before the operands
         self.unchecked_full = True
         self.world_ratio, self.world_floor, self.world_lag = WORLD_RATIO, WORLD_FLOOR, WORLD_LAG
+        self.world_batch = WORLD_BATCH
         self.world_refreshes, self.refactorizer = 0, None
         self._world_first = np.zeros(m.num_worlds, dtype=np.int64)  # its first solve's iterations (0: none yet)
-        self._due = self._own = None  # per block: due for its own refresh; serving one world alone
+        # per block: its world's CG count where due for its own refresh (else 0); whether it serves one world alone
+        self._due = self._own = None
         self._value_start = None  # per direction: each block's first value (panels), and the end
         self.tail(sorted({math.ceil(f * m.num_worlds) for f in TAIL}) if d.is_cuda else [])
 
@@ -294,7 +298,7 @@ class WorldFactors(WorldGroups):
         self.take_frame()
         self._world_first[:] = 0  # every world's count starts anew
         if self._due is not None:
-            self._due[:] = False
+            self._due[:] = 0
         if self.refactorizer is not None:  # blocks being refactorized alone: made at an older state
             self.refactorizer.cancel()
         elif first and self.world_floor is not None and self.layout == "panels":
@@ -331,9 +335,9 @@ class WorldFactors(WorldGroups):
     def observe_worlds(self, iterations: np.ndarray) -> None:
         """Told each world's iterations of a solve, ``(worlds,)``: a world whose CG grew past
         ``world_ratio`` times its first solve's after its block's last factorization, and past
-        ``world_floor``, marks its block due for :meth:`refresh_worlds` (panels only; a block
-        that serves one world alone: a shared one is made at its first world's state, and its
-        other worlds would then step otherwise than alone)."""
+        ``world_floor``, marks its block due for :meth:`refresh_worlds`, with that count (panels
+        only; a block that serves one world alone: a shared one is made at its first world's
+        state, and its other worlds would then step otherwise than alone)."""
         if self.world_floor is None or self.block_of is None or self.layout != "panels":
             return
         its = np.asarray(iterations, dtype=np.int64)
@@ -342,12 +346,12 @@ class WorldFactors(WorldGroups):
         new = self._world_first == 0
         self._world_first[new] = np.maximum(its[new], 1)
         grown = ~new & (its > np.maximum(self.world_ratio * self._world_first, self.world_floor))
-        self._due[self.block_of[grown]] = True
-        self._due &= self._own
+        np.maximum.at(self._due, self.block_of[grown], its[grown])
+        self._due[~self._own] = 0
 
     def _start_own(self) -> None:
         """The blocks that serve one world alone (they may be refreshed alone), none due yet."""
-        self._due = np.zeros(self.blocks, dtype=bool)
+        self._due = np.zeros(self.blocks, dtype=np.int64)
         self._own = np.bincount(self.block_of, minlength=self.blocks) == 1
 
     @property
@@ -358,14 +362,14 @@ class WorldFactors(WorldGroups):
         return pending or (self._due is not None and bool(self._due.any()))
 
     def refresh_worlds(self) -> int:
-        """At a step boundary (before the step's graphs): send each block due (:meth:`observe_worlds`)
-        to be factorized anew at its world's last linearization (:mod:`~warpsoft.linear.refactor`),
-        and install those sent ``world_lag`` boundaries ago: their values written in place (the
-        captured graphs read the same arrays), their worlds' frame the node rotations they were
-        factorized at. Host work here: a due world's element blocks made and their copy into its
-        worker's shared memory queued (beside the graphs, on CUDA), a job's values copied from it to
-        the device; the system's sum, CHOLMOD and the panels run in the worker. Returns the blocks
-        installed."""
+        """At a step boundary (before the step's graphs): send the blocks due (:meth:`observe_worlds`;
+        at most ``world_batch``, those of the worlds whose CG took the most) to be factorized anew
+        at its world's last linearization (:mod:`~warpsoft.linear.refactor`), and install those sent
+        ``world_lag`` boundaries ago: their values written in place (the captured graphs read the
+        same arrays), their worlds' frame the node rotations they were factorized at. Host work
+        here: a due world's element blocks made and their copy into its worker's shared memory
+        queued (beside the graphs, on CUDA), a job's values copied from it to the device; the
+        system's sum, CHOLMOD and the panels run in the worker. Returns the blocks installed."""
         m, d = self.op.model, self.op.model.device
         if self.refactorizer is None and self._due is not None:
             self.refactorizer = self._refactorizer()
@@ -374,8 +378,11 @@ class WorldFactors(WorldGroups):
             return 0
         refactor.lag = self.world_lag
         refactor.next_boundary()
-        # (a block being made is not sent again: its count still grows on the old factor)
+        # the slowest worlds' blocks first, at most world_batch of them (the others, still grown at
+        # the next solve, come up again); a block being made is not sent again: its count still
+        # grows on the old factor
         due = [] if self._due is None else [int(b) for b in np.flatnonzero(self._due) if int(b) not in refactor.pending]
+        due = sorted(sorted(due, key=lambda b: -int(self._due[b]))[:self.world_batch or len(due)])
         if due:  # their worlds' element blocks, one world after another, and every node's rotation now
             worlds = [int(self.first_world[b]) for b in due]
             ranges = [(int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])) for w in worlds]
@@ -388,7 +395,7 @@ class WorldFactors(WorldGroups):
             refactor.submit(due, worlds, blocks, self.op.stiffness_scale, self.op.mass_scale, spans,
                             wp.clone(self.node_rot))
         if self._due is not None:
-            self._due[:] = False
+            self._due[:] = 0
         jobs = refactor.due()
         for job in jobs:
             b = job.block
