@@ -324,8 +324,9 @@ def test_a_world_whose_cg_grew_is_refactorized_alone():
     sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
     sim.step()
     pre = WorldFactors(sim.operator, 3, "float64", share=False)
-    assert pre.world_floor is None and pre.world_lag == factors.WORLD_LAG == 2  # (off by default)
-    pre.world_floor, pre.world_ratio, pre.world_lag = 10, 2.0, 0
+    assert (pre.world_floor, pre.world_ratio, pre.world_lag) == (factors.WORLD_FLOOR, factors.WORLD_RATIO,
+                                                                 factors.WORLD_LAG) == (10, 1.5, 2)  # (on by default)
+    pre.world_ratio, pre.world_lag = 2.0, 0
     pre.prepare()  # factorized at the first step's state
     for _ in range(3):
         sim.step()

@@ -69,8 +69,9 @@ class Simulator:
             inverse per world, shared by worlds equal up to a factor), "factors" (CHOLMOD's sparse
             factor per world instead, its triangular solves run on the device level by level: 60-90
             times fewer numbers than a dense inverse, made in milliseconds instead of seconds,
-            for batches of many different meshes) or "auto" ("blocks" on CUDA for several worlds,
-            "dense" on CUDA for one, "host" on the CPU).
+            for batches of many different meshes; a world's factor is made anew when its CG grows,
+            by worker processes beside the steps: :data:`~warpsoft.linear.factors.WORLD_FLOOR`) or
+            "auto" ("blocks" on CUDA for several worlds, "dense" on CUDA for one, "host" on the CPU).
         precision: ``pcg`` with a dense inverse: its storage, "float32" (default: half the memory
             and bytes per iteration; the CG itself runs in float64, so the solution meets the
             same tolerance, at the cost of 0-2 more iterations on the reference scenes) or "float64".

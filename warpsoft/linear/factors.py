@@ -82,12 +82,13 @@ POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CP
 # factorization, and more than WORLD_FLOOR (None: never), by worker processes beside the steps and
 # installed WORLD_LAG step boundaries later (warpsoft/linear/refactor.py); at most WORLD_BATCH blocks
 # sent at one boundary (None: every one due), the slowest worlds' first (a fixed number, so that a
-# trajectory never depends on the machine's cores). Off by default: on the H200, 1024 Diamonds, a
-# floor of 10 with a lag of 2 gives 45.0-47.4 ms steps once the refreshes are made (51.9-54.7 ms
-# without), but the 10-step median only breaks even (55.60 against 56.1-56.2 ms); and it forks a
-# worker a core, with 6 GB of page-locked memory for those 1024 worlds (docs/performance.md). A lag
-# of 2: the workers were waited for 0.03 s in those 10 steps, 0.16 s with a lag of 1
-WORLD_RATIO, WORLD_FLOOR, WORLD_LAG, WORLD_BATCH = 2.0, None, 2, 16
+# trajectory never depends on the machine's cores). On by default: on the H200, 1024 Diamonds over
+# the scene's 100 steps, the steps took 59.4 ms on average with it (a floor of 10, a ratio of 1.5,
+# a lag of 2, batches of 16) and 960 ms without, where three refactorizations of the whole model
+# stalled a step for 29-31 s each (docs/performance.md). It forks a worker a core, with their shared
+# memory page-locked on CUDA (6 GB for those 1024 worlds). A lag of 2: the workers were waited for
+# 0.03 s in 10 steps, 0.16 s with a lag of 1
+WORLD_RATIO, WORLD_FLOOR, WORLD_LAG, WORLD_BATCH = 1.5, 10, 2, 16
 
 
 def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str,
