@@ -94,13 +94,12 @@ class WorldGroups(WarpedFrames):
         """Number of distinct factorizations."""
         return 0 if self.block_of is None else int(self.block_of.max()) + 1
 
-    def _values(self, blocks: wp.array, w: int, local: bool = False) -> np.ndarray:
+    def _values(self, blocks: wp.array, w: int) -> np.ndarray:
         """World ``w``'s system as numbers that fix it: its element blocks (scaled) and, when the
-        system has mass, its nodes' masses (scaled). ``local``: ``blocks`` holds world ``w``'s
-        elements' alone (else every element's)."""
+        system has mass, its nodes' masses (scaled)."""
         m, op = self.op.model, self.op
         e0, e1 = int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])
-        values = op.stiffness_scale * (blocks if local else blocks[16 * e0:16 * e1]).numpy().ravel()
+        values = op.stiffness_scale * blocks[16 * e0:16 * e1].numpy().ravel()
         if op.mass_scale != 0.0:
             values = np.concatenate([values, op.mass_scale * m.mass_np[m.world_nodes(w)]])
         return values

@@ -260,10 +260,9 @@ class WorldFactors(WorldGroups):
             return 0
         return sum(a.capacity for s in self.solves for a in s[:3]) + 3 * self.u.capacity
 
-    def _system(self, blocks: wp.array, w: int, local: bool = False) -> np.ndarray:
-        """World ``w``'s lower triangle (its pattern's values) at the element blocks ``blocks``
-        (``local``: world ``w``'s alone)."""
-        values = self._values(blocks, w, local)
+    def _system(self, blocks: wp.array, w: int) -> np.ndarray:
+        """World ``w``'s lower triangle (its pattern's values) at the element blocks ``blocks``."""
+        values = self._values(blocks, w)
         count = 144 * len(self.meshes[self.mesh_of[w]][0])  # 16 blocks of 9 numbers per element
         masses = values[count:] if len(values) > count else None
         return lower_system(self.patterns[self.mesh_of[w]], values[:count], masses)
