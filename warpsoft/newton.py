@@ -42,6 +42,8 @@ import numpy as np
 import warp as wp
 
 from warpsoft.kernels import newton as kernels
+from warpsoft.kernels import worlds as world_kernels
+from warpsoft.kernels.linear import cg as cg_kernels
 from warpsoft.kernels.linear.pcg import launch_nodes
 
 from .errors import SceneError
@@ -103,6 +105,15 @@ class Newton:
         self.floor = self.c_f * energy * FLOOR_STRAIN ** 2
         self.alpha_host = np.ones(worlds)
         self.alpha = wp.array(self.alpha_host, dtype=wp.float64, device=d)
+        # the worlds this pass moves (1) and those it leaves where the last linearization was made
+        # (0): a later iteration's done worlds, a line search's worlds not retrying. Their
+        # linearization is kept rather than made again (``kernels/worlds.py``)
+        self.moving_host = np.ones(worlds, dtype=np.int32)
+        self.moving = wp.array(self.moving_host, dtype=wp.int32, device=d)
+        # the same as CG scalars (``(1, worlds, slots)``, DONE set for the worlds that stay): the
+        # stiffness product of the damping skips them as a solve skips its converged worlds
+        self.still = wp.zeros((1, worlds, cg_kernels.NUM_SCALARS) if self.c_d != 0.0 else (0, 0, 0),
+                              dtype=wp.float64, device=d)
         self.mass = m.mass if m.mass is not None else wp.zeros(n, dtype=wp.float64, device=d)
         rows = sim.rows
         self.actuated = rows is not None and rows.num_columns > 0  # rows that carry a force
@@ -187,9 +198,10 @@ class Newton:
         """The out-of-balance ``r(dx)`` (the next solve's right-hand side, ``rhs[0]``) and ``R . e``
         (``sums``), at the current linearization (forces, rows' columns)."""
         sim, m = self.sim, self.sim.model
-        if self.c_d != 0.0:
-            self.kdx.zero_()
-            sim.elastic.apply(self.dx, self.kdx, sim.rot, self.c_d)
+        if self.c_d != 0.0:  # (unchanged for the worlds that stay: their dx and rotations are)
+            launch(world_kernels.zero_moving, m.num_nodes, inputs=[m.node_world, self.moving], outputs=[self.kdx[0]],
+                   device=m.device)
+            sim.elastic.apply(self.dx, self.kdx, sim.rot, self.c_d, self.still)
         self.sums.zero_()
         if self.actuated:
             sim.rows.force_rows_forces(sim.gauss_seidel.lam, 1.0, self.row_forces)
@@ -215,6 +227,7 @@ class Newton:
         if self.accepted != 1 or self.trials:  # (after a step of one full iteration, all is as it should be)
             self._reset_host()
             self._set_alpha(np.ones_like(self.alpha_host))
+            self._set_moving(np.ones_like(self.moving_host))
         else:
             self.done[:] = False
             self.iterations[:] = 0
@@ -224,6 +237,16 @@ class Newton:
         if not np.array_equal(alpha, self.alpha_host):  # uploads only when it changes
             self.alpha_host = alpha.copy()
             self.alpha.assign(self.alpha_host)
+
+    def _set_moving(self, moving: np.ndarray) -> None:
+        moving = moving.astype(np.int32)
+        if not np.array_equal(moving, self.moving_host):  # uploads only when it changes
+            self.moving_host = moving
+            self.moving.assign(moving)
+            if self.still.shape[0]:
+                still = np.zeros(self.still.shape)
+                still[0, :, cg_kernels.DONE] = moving == 0
+                self.still.assign(still)
 
     def judge(self, host: dict[str, np.ndarray]) -> bool:
         """After an iteration or a line-search trial was read: True when some world overshot and
@@ -244,6 +267,7 @@ class Newton:
             self.retried[over] = True
             self.trials += 1
             self._set_alpha(alpha)
+            self._set_moving(over)  # the others are where they were: their linearization stays
             return True
         moving = ~self.done
         self.energy0, self.accepted = energy0, self.accepted + 1
@@ -257,7 +281,11 @@ class Newton:
         the done worlds stay where they are."""
         self.done |= (self.alpha_host == 1.0) & (self.error <= self.limit)
         if self.accepted >= self.max_iterations or self.done.all():
+            # between steps every world is linearized whole (a state set from outside, a new
+            # preconditioner's first factorization)
+            self._set_moving(np.ones_like(self.moving_host))
             return False
         self.trials_left[:] = self.backtracks
         self._set_alpha(np.where(self.done, 0.0, 1.0))
+        self._set_moving(~self.done)  # the done worlds are held: their linearization stays
         return True

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import warp as wp
 
+from warpsoft.kernels import worlds
 from warpsoft.kernels.elastic import geometry
 from warpsoft.kernels.linear import cg as linalg
 from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
@@ -175,9 +176,12 @@ def reuse_factor(sim: Simulator) -> int | None:
 
 # ---- stages ------------------------------------------------------------------------------
 def linearize(sim: Simulator, q: wp.array) -> None:
-    """Element rotations and internal forces at ``q``; the solver's per-linearization update."""
-    sim.f_int.zero_()
-    sim.elastic.linearize(q, sim.rot, sim.f_int)
+    """Element rotations and internal forces at ``q``; the solver's per-linearization update. The
+    worlds that Newton leaves where they are (``sim.operator.moving``: a later iteration's done
+    worlds, a line search's worlds not retrying) keep theirs: the same numbers, not made again."""
+    m, moving = sim.model, sim.operator.moving
+    launch(worlds.zero_moving, m.num_nodes, inputs=[m.node_world, moving], outputs=[sim.f_int], device=m.device)
+    sim.elastic.linearize(q, sim.rot, sim.f_int, moving)
     sim.operator.linearized()  # (the assembled blocks, where A is applied from them)
     sim.solver.prepare()
     sim.newton.linearized_at(q)

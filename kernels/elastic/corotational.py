@@ -15,6 +15,7 @@ Conventions (all kernels, float64):
 import warp as wp
 
 from ..linear.cg import column_done
+from ..worlds import still
 from .geometry import edge_matrix, polar_rotation, shape_gradient
 
 
@@ -33,11 +34,16 @@ def element_forces(
     volume: wp.array(dtype=wp.float64),
     mu: wp.array(dtype=wp.float64),
     lam: wp.array(dtype=wp.float64),
+    world: wp.array(dtype=wp.int32),
+    moving: wp.array(dtype=wp.int32),
     rot: wp.array(dtype=wp.mat33d),
     force: wp.array(dtype=wp.vec3d),
 ):
-    """Linearize: store each element's rotation and scatter its internal forces (N)."""
+    """Linearize: store each element's rotation and scatter its internal forces (N); an element of
+    a world that stays (``kernels/worlds.py``) keeps both."""
     e = wp.tid()
+    if still(moving, world[e]):
+        return
     t = tets[e]
     Di = dm_inv[e]
     F = edge_matrix(q[t[0]], q[t[1]], q[t[2]], q[t[3]]) * Di
@@ -162,12 +168,17 @@ def rotated_gradients(
     mu: wp.array(dtype=wp.float64),
     lam: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
+    world: wp.array(dtype=wp.int32),
+    moving: wp.array(dtype=wp.int32),
     grads: wp.array(dtype=wp.vec3d),
     moduli: wp.array(dtype=wp.vec2d),
 ):
     """Each element's four rotated shape gradients ``grads[4 e + a] = R g_a`` (1/m) and
-    ``moduli[e] = (V mu, V lam)`` (N m): what :func:`stiffness_slots_from` reads of it."""
+    ``moduli[e] = (V mu, V lam)`` (N m): what :func:`stiffness_slots_from` reads of it (kept for
+    the worlds that stay)."""
     e = wp.tid()
+    if still(moving, world[e]):
+        return
     Di = dm_inv[e]
     R = rot[e]
     for a in range(4):
@@ -181,6 +192,8 @@ def stiffness_slots_from(
     moduli: wp.array(dtype=wp.vec2d),
     slot_start: wp.array(dtype=wp.int32),
     contributions: wp.array(dtype=wp.int32),
+    world: wp.array(dtype=wp.int32),
+    moving: wp.array(dtype=wp.int32),
     values: wp.array(dtype=wp.mat33d),
 ):
     """The blocks of :func:`stiffness_blocks` summed where they land, a thread per slot, none
@@ -189,10 +202,14 @@ def stiffness_slots_from(
     :func:`rotated_gradients` (``K0`` is linear in ``mu`` and ``lam``). A contribution reads two
     gradients and two moduli (64 bytes); reading its element's ``D^-1``, rotation and material
     (168 bytes) and rotating the gradients there took 3.93 ms for 1024 Diamonds on the H200,
-    against 1.89 ms now and 0.72 for the gradients."""
+    against 1.89 ms now and 0.72 for the gradients. A slot of a world that stays (its first
+    element's) keeps its value; a padding slot has no element and stays zero."""
     s = wp.tid()
+    j0, j1 = slot_start[s], slot_start[s + 1]
+    if j0 == j1 or still(moving, world[contributions[j0] // 16]):
+        return
     acc = wp.mat33d()
-    for j in range(slot_start[s], slot_start[s + 1]):
+    for j in range(j0, j1):
         k = contributions[j]
         e = k // 16
         c = moduli[e]

@@ -33,6 +33,7 @@ whole.
 import warp as wp
 
 from ..linear.cg import column_done
+from ..worlds import still
 from .geometry import edge_matrix, shape_gradient
 
 
@@ -148,13 +149,18 @@ def element_forces(
     volume: wp.array(dtype=wp.float64),
     mu: wp.array(dtype=wp.float64),
     lam: wp.array(dtype=wp.float64),
+    world: wp.array(dtype=wp.int32),
+    moving: wp.array(dtype=wp.int32),
     rot: wp.array(dtype=wp.mat33d),
     tangent: wp.array(dtype=Tangent),
     force: wp.array(dtype=wp.vec3d),
 ):
     """Linearize: each element's projected tangent and rotation ``U V^T`` (for the warped
-    preconditioner), and its internal forces (N) scattered."""
+    preconditioner), and its internal forces (N) scattered; an element of a world that stays
+    (``kernels/worlds.py``) keeps all three."""
     e = wp.tid()
+    if still(moving, world[e]):
+        return
     t = tets[e]
     Di = dm_inv[e]
     F = edge_matrix(q[t[0]], q[t[1]], q[t[2]], q[t[3]]) * Di

@@ -18,6 +18,7 @@ Conventions (all kernels, float64):
 import warp as wp
 
 from ..linear.cg import column_done
+from ..worlds import still
 from .corotational import hooke, stiffness_block
 from .geometry import polar_rotation, shape_gradient
 
@@ -128,11 +129,16 @@ def element_forces(
     volume: wp.array(dtype=wp.float64),
     mu: wp.array(dtype=wp.float64),
     lam: wp.array(dtype=wp.float64),
+    world: wp.array(dtype=wp.int32),
+    moving: wp.array(dtype=wp.int32),
     rot: wp.array(dtype=wp.mat33d),
     force: wp.array(dtype=wp.vec3d),
 ):
-    """Linearize: store each element's rotation and scatter its internal forces (N)."""
+    """Linearize: store each element's rotation and scatter its internal forces (N); an element
+    of a world that stays (``kernels/worlds.py``) keeps both."""
     e = wp.tid()
+    if still(moving, world[e]):
+        return
     t = elems[e]
     Di = dm_inv[e]
     g0, g1, g2, g3 = corner_gradients(Di)
@@ -308,10 +314,15 @@ def accumulate_node_rotations(
     elems: wp.array(dtype=vec10i),
     volume: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
+    world: wp.array(dtype=wp.int32),
+    moving: wp.array(dtype=wp.int32),
     node_sum: wp.array(dtype=wp.mat33d),
 ):
-    """``node_sum[i] += V_e R_e`` over the elements ``e`` around node ``i``."""
+    """``node_sum[i] += V_e R_e`` over the elements ``e`` around node ``i`` (not for the worlds
+    that stay)."""
     e = wp.tid()
+    if still(moving, world[e]):
+        return
     t = elems[e]
     w = volume[e] * rot[e]
     for a in range(10):

@@ -15,6 +15,7 @@ Vectors are ``(k, n)`` arrays of vec3d (column, node); the dense path works on f
 import warp as wp
 
 from ..elastic.geometry import polar_rotation
+from ..worlds import still
 
 
 @wp.kernel
@@ -22,10 +23,15 @@ def accumulate_node_rotations(
     tets: wp.array(dtype=wp.vec4i),
     volume: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
+    world: wp.array(dtype=wp.int32),
+    moving: wp.array(dtype=wp.int32),
     node_sum: wp.array(dtype=wp.mat33d),
 ):
-    """``node_sum[i] += V_e R_e`` over the elements ``e`` around node ``i``."""
+    """``node_sum[i] += V_e R_e`` over the elements ``e`` around node ``i`` (not for the worlds
+    that stay: ``kernels/worlds.py``)."""
     e = wp.tid()
+    if still(moving, world[e]):
+        return
     t = tets[e]
     w = volume[e] * rot[e]
     for a in range(4):
@@ -38,12 +44,17 @@ def gather_node_rotations(
     node_elems: wp.array(dtype=wp.int32),
     volume: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
+    node_world: wp.array(dtype=wp.int32),
+    moving: wp.array(dtype=wp.int32),
     node_sum: wp.array(dtype=wp.mat33d),
 ):
     """``node_sum[i] += V_e R_e`` over the elements ``e`` around node ``i``
     (``node_elems[node_first[i]:node_first[i + 1]]``): a thread per node, no atomics (for 1024
-    Diamonds on the H200, 0.63 ms against 2.24 by atomic sums from the elements)."""
+    Diamonds on the H200, 0.63 ms against 2.24 by atomic sums from the elements); not for the
+    worlds that stay."""
     i = wp.tid()
+    if still(moving, node_world[i]):
+        return
     acc = wp.mat33d()
     for j in range(node_first[i], node_first[i + 1]):
         e = node_elems[j]
@@ -55,16 +66,20 @@ _relative = {}
 
 
 def relative_node_rotations(kind=wp.mat33d):
-    """``relative(node_sum, frame, node_rot, q_rot)``, a thread per node: ``R_i = polar(node_sum[i])``
-    and ``Q_i = R_i R_f,i^T`` (``frame`` holds ``R_f``), ``q_rot`` of ``kind`` (mat33d, or mat33f for
-    a preconditioner that works in float32). Cached per ``kind``."""
+    """``relative(node_sum, frame, node_world, moving, node_rot, q_rot)``, a thread per node: ``R_i =
+    polar(node_sum[i])`` and ``Q_i = R_i R_f,i^T`` (``frame`` holds ``R_f``), ``q_rot`` of ``kind``
+    (mat33d, or mat33f for a preconditioner that works in float32); the nodes of the worlds that stay
+    keep theirs (``moving``: ``kernels/worlds.py``; None: every node). Cached per ``kind``."""
     if kind in _relative:
         return _relative[kind]
 
     @wp.kernel(module="unique")
     def relative(node_sum: wp.array(dtype=wp.mat33d), frame: wp.array(dtype=wp.mat33d),
+                 node_world: wp.array(dtype=wp.int32), moving: wp.array(dtype=wp.int32),
                  node_rot: wp.array(dtype=wp.mat33d), q_rot: wp.array(dtype=kind)):
         i = wp.tid()
+        if still(moving, node_world[i]):
+            return
         R = polar_rotation(node_sum[i])
         node_rot[i] = R
         q_rot[i] = kind(R * wp.transpose(frame[i]))

@@ -48,11 +48,12 @@ class Elements:
             else:
                 yield g, r, None
 
-    def linearize(self, q: wp.array, rot: wp.array, force: wp.array) -> None:
+    def linearize(self, q: wp.array, rot: wp.array, force: wp.array, moving: wp.array | None = None) -> None:
         """Rotations ``rot`` at positions ``q`` (m) and the internal forces (N) accumulated into
-        ``force`` (``(n,)`` vec3d, zeroed by the caller)."""
+        ``force`` (``(n,)`` vec3d, zeroed by the caller for the worlds that move); ``moving``
+        (``(worlds,)`` int32, ``kernels/worlds.py``; None: all): the worlds that stay keep theirs."""
         for g, r, _ in self._parts(rot):
-            g.linearize(q, r, force)
+            g.linearize(q, r, force, moving)
 
     def apply(self, x: wp.array, y: wp.array, rot: wp.array, scale: float, done: wp.array | None = None) -> None:
         """``y[c] += scale K x[c]`` for ``(k, n)`` vec3d ``x`` and ``y`` (see the element models)."""
@@ -84,10 +85,11 @@ class Elements:
             pairs.append(np.stack([np.repeat(e, k, axis=1), np.tile(e, (1, k))], axis=2).reshape(-1, 2))
         return np.concatenate(pairs)
 
-    def node_rotations(self, rot: wp.array, node_sum: wp.array) -> None:
-        """Accumulate ``V_e R_e`` of every element into each of its nodes, ``node_sum`` ``(n,)``."""
+    def node_rotations(self, rot: wp.array, node_sum: wp.array, moving: wp.array | None = None) -> None:
+        """Accumulate ``V_e R_e`` of every element into each of its nodes, ``node_sum`` ``(n,)`` (not
+        for the worlds that stay: ``moving``)."""
         for g, r, _ in self._parts(rot):
-            g.node_rotations(r, node_sum)
+            g.node_rotations(r, node_sum, moving)
 
     def energy(self, q: wp.array, out: wp.array) -> None:
         """Accumulate the elastic energy (J) at positions ``q`` into ``out[0]``."""

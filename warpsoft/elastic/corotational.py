@@ -56,11 +56,12 @@ class Corotational:
         """The kernels' inputs that define the tangent stiffness of the last linearization."""
         return [*self._material(), rot]
 
-    def linearize(self, q: wp.array, rot: wp.array, force: wp.array) -> None:
+    def linearize(self, q: wp.array, rot: wp.array, force: wp.array, moving: wp.array | None = None) -> None:
         """Rotations ``rot`` at positions ``q`` (m) and the internal forces (N) accumulated into
-        ``force`` (``(n,)`` vec3d, zeroed by the caller)."""
+        ``force`` (``(n,)`` vec3d, zeroed by the caller); with ``moving`` (``(worlds,)`` int32,
+        ``kernels/worlds.py``), the elements of the worlds that stay are left as they were."""
         m, g = self.model, self.group
-        launch(self.kernels.element_forces, g.count, inputs=[q, g.elems, *self._material()],
+        launch(self.kernels.element_forces, g.count, inputs=[q, g.elems, *self._material(), g.world, moving],
                outputs=self._linearization(rot) + [force], device=m.device)
 
     def apply(self, x: wp.array, y: wp.array, rot: wp.array, scale: float, done: wp.array | None = None) -> None:
@@ -88,33 +89,36 @@ class Corotational:
         inputs = self._tangent(rot) if elements is None else [a[lo:hi] for a in self._tangent(rot)]
         launch(self.kernels.stiffness_blocks, hi - lo, inputs=inputs, outputs=[blocks], device=self.model.device)
 
-    def gather_blocks(self, rot: wp.array, slot_start: wp.array, contributions: wp.array, values: wp.array) -> bool:
+    def gather_blocks(self, rot: wp.array, slot_start: wp.array, contributions: wp.array, values: wp.array,
+                      moving: wp.array | None = None) -> bool:
         """The blocks of :meth:`blocks` summed into slots, none stored: ``values[s]`` (N/m) sums the
-        blocks ``contributions[slot_start[s]:slot_start[s + 1]]`` (indexes as in :meth:`blocks`).
-        Returns False where the element model has no such kernel (the caller stores the blocks)."""
+        blocks ``contributions[slot_start[s]:slot_start[s + 1]]`` (indexes as in :meth:`blocks`); the
+        slots of the worlds that stay (``moving``) keep theirs. Returns False where the element model
+        has no such kernel (the caller stores the blocks)."""
         m, g = self.model, self.group
         if getattr(self.kernels, "rotated_gradients", None) is None:
             return False
         if self._gradients is None:  # each element's rotated gradients, then the slots read them
             self._gradients = (wp.zeros(4 * g.count, dtype=wp.vec3d, device=m.device),
                                wp.zeros(g.count, dtype=wp.vec2d, device=m.device))
-        launch(self.kernels.rotated_gradients, g.count, inputs=self._tangent(rot), outputs=list(self._gradients),
-               device=m.device)
-        launch(self.kernels.stiffness_slots_from, len(values), inputs=[*self._gradients, slot_start, contributions],
-               outputs=[values], device=m.device)
+        launch(self.kernels.rotated_gradients, g.count, inputs=[*self._tangent(rot), g.world, moving],
+               outputs=list(self._gradients), device=m.device)
+        launch(self.kernels.stiffness_slots_from, len(values),
+               inputs=[*self._gradients, slot_start, contributions, g.world, moving], outputs=[values], device=m.device)
         return True
 
-    def node_rotations(self, rot: wp.array, node_sum: wp.array) -> None:
-        """Accumulate ``V_e R_e`` into each node of element ``e``, ``node_sum`` ``(n,)`` mat33d."""
+    def node_rotations(self, rot: wp.array, node_sum: wp.array, moving: wp.array | None = None) -> None:
+        """Accumulate ``V_e R_e`` into each node of element ``e``, ``node_sum`` ``(n,)`` mat33d (not
+        for the worlds that stay: ``moving``)."""
         m, g = self.model, self.group
         if m.device.is_cuda if self.gather_rotations is None else self.gather_rotations:
             if self._incidence is None:
                 self._incidence = incidence(g.elems.numpy(), m.num_nodes, m.device)
-            launch(warped_kernels.gather_node_rotations, m.num_nodes, inputs=[*self._incidence, g.volume, rot],
-                   outputs=[node_sum], device=m.device)
+            launch(warped_kernels.gather_node_rotations, m.num_nodes,
+                   inputs=[*self._incidence, g.volume, rot, m.node_world, moving], outputs=[node_sum], device=m.device)
             return
-        launch(self.node_rotation_kernel, g.count, inputs=[g.elems, g.volume, rot], outputs=[node_sum],
-               device=m.device)
+        launch(self.node_rotation_kernel, g.count, inputs=[g.elems, g.volume, rot, g.world, moving],
+               outputs=[node_sum], device=m.device)
 
     def energy(self, q: wp.array, out: wp.array) -> None:
         """Accumulate the elastic energy (J) at positions ``q`` into ``out[0]``."""

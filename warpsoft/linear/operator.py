@@ -38,6 +38,9 @@ class SystemOperator:
         self.mass_scale = 0.0
         self.stiffness_scale = 1.0
         self.blocks = AssembledBlocks(model, self.elastic) if assembled else None
+        # the worlds whose linearization is made anew at the next one (``(worlds,)`` int32 on the
+        # device, ``kernels/worlds.py``; None: all): set once by the step's Newton iterations
+        self.moving = None
 
     def set_scales(self, mass_scale: float, stiffness_scale: float) -> None:
         if mass_scale != 0.0 and self.model.mass is None:
@@ -48,7 +51,7 @@ class SystemOperator:
         """``rot`` was rewritten (a new linearization): the assembled blocks follow it (nothing to
         do matrix-free)."""
         if self.blocks is not None:
-            self.blocks.refresh(self.rot)
+            self.blocks.refresh(self.rot, self.moving)
 
     def apply(self, x: wp.array, y: wp.array, done: wp.array | None = None) -> None:
         """``y = A x`` for ``(k, n)`` columns: ``y`` vec3d, ``x`` vec3d (or vec3f with the assembled
@@ -157,9 +160,11 @@ class AssembledBlocks:
         chunk = np.searchsorted(self.chunk_start.numpy().astype(np.int64) * c, self.place, side="right") - 1
         return chunk * c + self.place % c, self.column.numpy()[self.place], self.values.numpy()[self.place]
 
-    def refresh(self, rot: wp.array) -> None:
-        """The blocks of ``K`` at the rotations ``rot`` (the element models' linearization)."""
-        if self.fused and self.elastic.groups[0].gather_blocks(rot, self.slot_start, self.contributions, self.values):
+    def refresh(self, rot: wp.array, moving: wp.array | None = None) -> None:
+        """The blocks of ``K`` at the rotations ``rot`` (the element models' linearization); fused,
+        the slots of the worlds that stay (``moving``, ``kernels/worlds.py``) keep theirs."""
+        if self.fused and self.elastic.groups[0].gather_blocks(rot, self.slot_start, self.contributions, self.values,
+                                                               moving):
             return
         self.elastic.blocks(rot, self.element_blocks)
         launch(assembled_kernels.gather_blocks, self.num_slots,

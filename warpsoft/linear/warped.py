@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
+from warpsoft.kernels import worlds
 from warpsoft.kernels.linear import warped as kernels
 
 from ..launch import launch
@@ -79,11 +80,12 @@ class WarpedFrames:
 
     def prepare(self) -> None:
         """Per linearization: node rotations from the element rotations; refactorize if due."""
-        m = self.op.model
-        self.node_sum.zero_()
-        self.op.elastic.node_rotations(self.op.rot, self.node_sum)
-        launch(kernels.relative_node_rotations(self.q_rot.dtype), m.num_nodes, inputs=[self.node_sum, self.frame],
-               outputs=[self.node_rot, self.q_rot], device=m.device)
+        m, moving = self.op.model, self.op.moving  # (the nodes of the worlds that stay keep theirs)
+        launch(worlds.zero_moving, m.num_nodes, inputs=[m.node_world, moving], outputs=[self.node_sum], device=m.device)
+        self.op.elastic.node_rotations(self.op.rot, self.node_sum, moving)
+        launch(kernels.relative_node_rotations(self.q_rot.dtype), m.num_nodes,
+               inputs=[self.node_sum, self.frame, m.node_world, moving], outputs=[self.node_rot, self.q_rot],
+               device=m.device)
         if self._stale:
             self.refresh()
 
@@ -104,8 +106,9 @@ class WarpedFrames:
                 wp.copy(self.frame, self.node_rot, dest_offset=lo, src_offset=lo, count=hi - lo)
             else:
                 wp.copy(self.frame, frames[k], dest_offset=lo, src_offset=lo, count=hi - lo)
-        launch(kernels.relative_node_rotations(self.q_rot.dtype), m.num_nodes, inputs=[self.node_sum, self.frame],
-               outputs=[self.node_rot, self.q_rot], device=m.device)
+        launch(kernels.relative_node_rotations(self.q_rot.dtype), m.num_nodes,
+               inputs=[self.node_sum, self.frame, m.node_world, None], outputs=[self.node_rot, self.q_rot],
+               device=m.device)
         if spans is None:
             self.refreshes += 1
             self._baseline, self._stale = None, False
