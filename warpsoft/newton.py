@@ -56,6 +56,16 @@ OVERSHOOT = 0.5  # eta below -OVERSHOOT: the step went past the minimum along it
 FLOOR_STRAIN = 1e-5  # corrections are judged against at least the energy of this strain throughout the body
 
 
+def zero_moving(a: wp.array, model, moving: wp.array | None) -> None:
+    """``a`` (``(nodes,)``) zeroed for the worlds that move (``moving``, ``kernels/worlds.py``):
+    an accumulator the linearization sums into anew; None: all of it (a memset)."""
+    if moving is None:
+        a.zero_()
+        return
+    launch(world_kernels.zero_moving, model.num_nodes, inputs=[model.node_world, moving], outputs=[a],
+           device=model.device)
+
+
 class Newton:
     """The step's Newton state: buffers on the device, each world's judgement on the host.
 
@@ -112,8 +122,11 @@ class Newton:
         self.moving = wp.array(self.moving_host, dtype=wp.int32, device=d)
         # the same as CG scalars (``(1, worlds, slots)``, DONE set for the worlds that stay): the
         # stiffness product of the damping skips them as a solve skips its converged worlds
-        self.still = wp.zeros((1, worlds, cg_kernels.NUM_SCALARS) if self.c_d != 0.0 else (0, 0, 0),
+        self.still = wp.zeros((1, worlds, cg_kernels.NUM_SCALARS) if self.c_d != 0.0 and worlds > 1 else (0, 0, 0),
                               dtype=wp.float64, device=d)
+        # what the linearization reads (its operator's): one world moves whenever one is made, so
+        # it takes the plain path (no flag, memsets)
+        self.moving_flag = self.moving if worlds > 1 else None
         self.mass = m.mass if m.mass is not None else wp.zeros(n, dtype=wp.float64, device=d)
         rows = sim.rows
         self.actuated = rows is not None and rows.num_columns > 0  # rows that carry a force
@@ -199,9 +212,8 @@ class Newton:
         (``sums``), at the current linearization (forces, rows' columns)."""
         sim, m = self.sim, self.sim.model
         if self.c_d != 0.0:  # (unchanged for the worlds that stay: their dx and rotations are)
-            launch(world_kernels.zero_moving, m.num_nodes, inputs=[m.node_world, self.moving], outputs=[self.kdx[0]],
-                   device=m.device)
-            sim.elastic.apply(self.dx, self.kdx, sim.rot, self.c_d, self.still)
+            zero_moving(self.kdx[0], m, self.moving_flag)
+            sim.elastic.apply(self.dx, self.kdx, sim.rot, self.c_d, self.still if self.moving_flag else None)
         self.sums.zero_()
         if self.actuated:
             sim.rows.force_rows_forces(sim.gauss_seidel.lam, 1.0, self.row_forces)

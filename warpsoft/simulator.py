@@ -294,7 +294,7 @@ class Simulator:
         if newton_tolerance is None:
             newton_tolerance = 1e-4 if m.integrator == "trapezoidal" and not m.static else 0.1
         self.newton = Newton(self, newton_iterations, newton_tolerance, line_search)
-        self.operator.moving = self.newton.moving  # a later iteration relinearizes the worlds that moved alone
+        self.operator.moving = self.newton.moving_flag  # a later iteration relinearizes the worlds that moved alone
         if hasattr(self.solver, "hold"):  # a world Newton holds in place (alpha 0) is not solved again
             self.solver.hold(self.newton.alpha)
 

@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 import warp as wp
 
-from warpsoft.kernels import worlds
 from warpsoft.kernels.elastic import geometry
 from warpsoft.kernels.linear import cg as linalg
 from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
@@ -25,6 +24,7 @@ from warpsoft.kernels.rows import common as row_kernels
 from . import record, watch
 from .errors import SceneError, SimulationError
 from .launch import launch
+from .newton import zero_moving
 from .resolve import RowInputs, solve_inverse
 from .resolve.qpcc import ContactQP, solve_inverse_contacts
 from .resolve.qpcc_friction import FrictionQP, solve_inverse_friction
@@ -179,8 +179,8 @@ def linearize(sim: Simulator, q: wp.array) -> None:
     """Element rotations and internal forces at ``q``; the solver's per-linearization update. The
     worlds that Newton leaves where they are (``sim.operator.moving``: a later iteration's done
     worlds, a line search's worlds not retrying) keep theirs: the same numbers, not made again."""
-    m, moving = sim.model, sim.operator.moving
-    launch(worlds.zero_moving, m.num_nodes, inputs=[m.node_world, moving], outputs=[sim.f_int], device=m.device)
+    moving = sim.operator.moving
+    zero_moving(sim.f_int, sim.model, moving)
     sim.elastic.linearize(q, sim.rot, sim.f_int, moving)
     sim.operator.linearized()  # (the assembled blocks, where A is applied from them)
     sim.solver.prepare()

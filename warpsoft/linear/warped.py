@@ -25,10 +25,10 @@ from __future__ import annotations
 import numpy as np
 import warp as wp
 
-from warpsoft.kernels import worlds
 from warpsoft.kernels.linear import warped as kernels
 
 from ..launch import launch
+from ..newton import zero_moving
 from .assembly import SOLVE_ENTRIES, Assembly, CholmodFactor, solve_dofs
 from .operator import SystemOperator
 
@@ -81,7 +81,7 @@ class WarpedFrames:
     def prepare(self) -> None:
         """Per linearization: node rotations from the element rotations; refactorize if due."""
         m, moving = self.op.model, self.op.moving  # (the nodes of the worlds that stay keep theirs)
-        launch(worlds.zero_moving, m.num_nodes, inputs=[m.node_world, moving], outputs=[self.node_sum], device=m.device)
+        zero_moving(self.node_sum, m, moving)
         self.op.elastic.node_rotations(self.op.rot, self.node_sum, moving)
         launch(kernels.relative_node_rotations(self.q_rot.dtype), m.num_nodes,
                inputs=[self.node_sum, self.frame, m.node_world, moving], outputs=[self.node_rot, self.q_rot],
