@@ -111,7 +111,8 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout, mo
     long rows, whose lanes add by warp shuffles (one lane a row here); and with the slices'
     rows through that kernel, as CUDA's tail runs them (their entries ``width`` apart); and as
     panels (up to 4 rows of a supernode a task, their columns read once). With few worlds
-    running, their tasks alone, the same numbers."""
+    running, their tasks alone, the same numbers; so too with a block a panel (CUDA's wide
+    panels in the tail; one thread a block here)."""
     sim = ws.Simulator(ws.finalize([beam(), beam(3e6), beam(cells=16)]), solver="direct")
     sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
     pre = WorldFactors(sim.operator, 2, "float64", layout="panels" if layout == "panels" else "rows")
@@ -164,8 +165,9 @@ def test_a_shared_factor_serves_its_worlds_and_converged_ones_skip_it(layout, mo
         s[:, done, DONE] = 1.0
         scal.assign(s)
         skipped = np.isin(sim.model.node_world_np, done)
-        for tiers in ([], [1], [2], [1, 2]):
+        for tiers, wide in (([], None), ([1], None), ([2], None), ([1, 2], None), ([1, 2], 0.0)):
             pre.tail(tiers)
+            pre.wide_from = wide  # (0: every level of the tail's, as wide panels)
             pre.x.zero_()
             z.zero_()
             pre.apply(r, z)

@@ -193,6 +193,10 @@ def main(argv=None) -> int:
     ap.add_argument("--world-ratio", type=float, default=None,
                     help="factors: how many times its first solve's iterations a world's CG must take for its "
                          "factor to be made anew (default warpsoft.linear.factors.WORLD_RATIO)")
+    ap.add_argument("--wide", default=None,
+                    help="factors, CUDA: in the tail, the mean columns from which a level's panels take a block "
+                         "of threads each, and the block, FROM,LANES, or none (default "
+                         "warpsoft.linear.factors.WIDE_FROM, WIDE_LANES)")
     ap.add_argument("--kernels", action="store_true",
                     help="CUDA: time each kernel and copy of one more step, uncaptured (kernels.md)")
     ap.add_argument("--out", default="out/batch")
@@ -209,6 +213,10 @@ def main(argv=None) -> int:
         factors.WORLD_BATCH = args.world_batch or None
     if args.world_ratio is not None:
         factors.WORLD_RATIO = args.world_ratio
+    if args.wide is not None:
+        wide = None if args.wide == "none" else args.wide.split(",")
+        factors.WIDE_FROM = None if wide is None else float(wide[0])
+        factors.WIDE_LANES = factors.WIDE_LANES if wide is None else int(wide[1])
     everything = designs(max(args.sizes + [args.alone]), args.meshes)
     if args.workers > 1 and not os.environ.get("WARPSOFT_MESH_CACHE"):
         ap.error("--workers meshes ahead into the mesh cache: set WARPSOFT_MESH_CACHE to a folder")

@@ -3,7 +3,7 @@ over one solve's sequence of running worlds (those of the last warm-up step: at 
 ``i`` the worlds that took more than ``i``), each replayed from a graph, for each ``--tail``,
 ``--loads``, ``--lanes``, ``--unroll``, ``--short-lanes``, ``--tail-lanes`` and ``--entries``, for each
 ``--layout`` (rows or panels: the factors made again; ``--panel-rows``, ``--panel-spread``,
-``--panel-unroll``) (and the
+``--panel-unroll``, ``--wide``) (and the
 product's largest difference from the first's, with every world running and with the last
 iteration's).
 
@@ -67,12 +67,12 @@ def retype(pre, made: tuple, index, value) -> None:
     pre.index_dtype, pre.value_dtype = index, value
 
 
-def level_table(pre, columns: int) -> list[dict]:
+def level_table(pre, columns: int, tier: int = 0) -> list[dict]:
     """Per launch of the panels' levels with every world's tasks (forward, then backward): its
     panels, values, columns read (each an index and an operand row of ``columns`` numbers), the
-    lanes a panel takes and the longest lane's walk (columns), and the bytes it reads at least
-    (each value and column index once; the operand rows, which a supernode's panels share, not
-    counted)."""
+    lanes a panel takes at ``tier`` (0: every world's tasks; a wide level's: its block) and the
+    longest lane's walk (columns), and the bytes it reads at least (each value and column index
+    once; the operand rows, which a supernode's panels share, not counted)."""
     out = []
     vsize = np.dtype(wp.dtype_to_numpy(pre.value_dtype)).itemsize
     isize = np.dtype(wp.dtype_to_numpy(pre.index_dtype)).itemsize
@@ -81,7 +81,9 @@ def level_table(pre, columns: int) -> list[dict]:
         for j, (first, count, reads, _most) in enumerate(levels):
             part = t[first:first + count]
             width = part[:, 4] + part[:, 5]
-            lanes = pre.panel_lanes(reads, 0)
+            lanes = pre.panel_lanes(reads, tier)
+            if tier and pre.wide_from is not None and reads >= pre.wide_from:
+                lanes = pre.wide_lanes
             values, walk = int((part[:, 1] * width).sum()), np.ceil(width / lanes)
             out.append({"direction": direction, "level": j, "panels": int(count), "lanes": lanes,
                         "values": values, "columns": int(width.sum()), "walk_mean": float(walk.mean()),
@@ -91,23 +93,27 @@ def level_table(pre, columns: int) -> list[dict]:
     return out
 
 
-def per_level(pre, r, z, device: str, repeats: int = 5) -> list[dict]:
+LEVEL_KERNELS = ("factor_panel", "factor_wide_panel")  # (the levels' launches)
+
+
+def per_level(pre, r, z, device: str, repeats: int = 5, tier: int = 0) -> tuple[list[dict], float]:
     """:func:`level_table` with each level's median device time (ms) over ``repeats`` products with
-    every world, launched one by one (not from a graph) and timed by CUDA events."""
-    table = level_table(pre, r.shape[0])
+    the running worlds pre watches (``tier``: the tail's tier they launch at, 0 for every world's
+    tasks), launched one by one (not from a graph) and timed by CUDA events; and their median sum (ms)."""
+    table = level_table(pre, r.shape[0], tier)
     pre.apply(r, z)
     wp.synchronize_device(device)
     wp.timing_begin(cuda_filter=wp.TIMING_KERNEL)
     for _ in range(repeats):
         pre.apply(r, z)
-    timed = [t for t in wp.timing_end() if "factor_panel" in t.name]
+    timed = [t for t in wp.timing_end() if any(name in t.name for name in LEVEL_KERNELS)]
     if len(timed) != repeats * len(table):
-        raise RuntimeError(f"per_level: {len(timed)} panel launches timed, {repeats * len(table)} expected")
+        raise RuntimeError(f"per_level: {len(timed)} level launches timed, {repeats * len(table)} expected")
     ms = np.array([t.elapsed for t in timed]).reshape(repeats, len(table))
     for row, t in zip(table, np.median(ms, axis=0), strict=True):
         row["ms"] = float(t)
         row["gb_per_s"] = row["bytes"] / t / 1e6
-    return table
+    return table, float(np.median(ms.sum(axis=1)))
 
 
 def main(argv=None) -> int:
@@ -133,6 +139,13 @@ def main(argv=None) -> int:
                     help="panels: the columns a lane takes at full load and in the tail, comma-separated (4,1)")
     ap.add_argument("--panel-rows", type=int, nargs="*", default=None, help="panels: rows a panel at most")
     ap.add_argument("--panel-unroll", type=int, nargs="*", default=None, help="panels: columns a lane loads at a time")
+    ap.add_argument("--wide", nargs="*", default=None,
+                    help="panels: in the tail, the mean columns from which a level's panels take a block of "
+                         "threads each, and the block, comma-separated (256,128), or none (default: the "
+                         "preconditioner's)")
+    ap.add_argument("--tail-running", type=int, default=50,
+                    help="--per-level: the levels also timed with this many running worlds at most (the first "
+                         "CG iteration of the last warm-up step with as few)")
     ap.add_argument("--unchecked", type=int, nargs="*", default=None, choices=[0, 1],
                     help="panels: 1 when every world runs, the tasks do not test their world (default: the "
                          "preconditioner's)")
@@ -182,11 +195,17 @@ def main(argv=None) -> int:
                 for sp in (spreads if lay == "panels" else [None])
                 for pu in (args.panel_unroll or [pre.panel_unroll] if lay == "panels" else [None])]
     variants = [(*v, unchecked) for v in variants for unchecked in args.unchecked or [int(pre.unchecked_full)]]
+    kept_wide = pre.wide_from, pre.wide_lanes
+    wides = [None if w == "none" else (float(w.split(",")[0]), int(w.split(",")[1])) for w in args.wide] \
+        if args.wide else [kept_wide if kept_wide[0] is not None else None]
+    variants = [(*v, wide) for v in variants for wide in (wides if v[0][0] == "panels" else [None])]
+    tail_mask = next((i for i in range(len(masks)) if int((its > i).sum()) <= args.tail_running), len(masks) - 1)
     # (each layout's factors made at the same rotations)
     made_as = None if args.layout or args.panel_rows else (pre.layout, pre.panel_rows)
     for ((layout, panel_rows), spread, panel_unroll, entry, tail, loads, lanes, unroll, short, tail_short,
-         unchecked) in variants:
+         unchecked, wide) in variants:
         pre.unchecked_full = bool(unchecked)
+        pre.wide_from, pre.wide_lanes = wide if wide is not None else (None, kept_wide[1])
         if (layout, panel_rows) != made_as:  # the factors made again, laid out
             t1 = time.perf_counter()
             retype(pre, made, *made[1:])
@@ -217,7 +236,7 @@ def main(argv=None) -> int:
         full = replayed(lambda: pre.apply(r, z), device, 10, 5)
         levels = None
         if args.per_level and layout == "panels" and wp.get_device(device).is_cuda:
-            levels = per_level(pre, r, z, device)
+            levels, _ = per_level(pre, r, z, device)
             for row in levels:
                 print(f"level {row['direction'][:4]} {row['level']:2d}: {row['panels']:7d} panels, "
                       f"{row['lanes']:2d} lanes, walk {row['walk_mean']:5.1f} (most {row['walk_max']:4d}), "
@@ -225,17 +244,27 @@ def main(argv=None) -> int:
                       f"{row['operand_bytes'] / 1e6:7.1f}): {1e3 * row['ms']:7.1f} us, {row['gb_per_s']:6.0f} GB/s",
                       flush=True)
             print(f"levels: {sum(row['ms'] for row in levels):.3f} ms in all", flush=True)
+            pre.watch(masks[tail_mask])
+            running = int((its > tail_mask).sum())
+            tier = next((t for t in pre.tiers if running <= t), 0)
+            tail_levels, tail_ms = per_level(pre, r, z, device, tier=tier)
+            for row in tail_levels:
+                print(f"tail ({running} running, tier {tier}) {row['direction'][:4]} {row['level']:2d}: "
+                      f"{row['lanes']:3d} lanes, walk {row['walk_mean']:5.1f} (most {row['walk_max']:4d}): "
+                      f"{1e3 * row['ms']:7.1f} us", flush=True)
+            print(f"tail levels ({running} running, tier {tier}): {tail_ms:.3f} ms in all", flush=True)
+            levels = {"full": levels, "tail": tail_levels, "tail_ms": tail_ms, "tail_running": running}
         sequence = []
         for mask in masks:
             pre.watch(mask)
             sequence.append(replayed(lambda: pre.apply(r, z), device, 5, 3))
-        results.append({"layout": layout, "panel_rows": panel_rows, "panel_spread": spread,
+        results.append({"layout": layout, "panel_rows": panel_rows, "panel_spread": spread, "wide": wide,
                         "panel_unroll": panel_unroll, "unchecked": unchecked,
                         "entries": entry, "tail": pre.tiers, "loads": loads, "lanes": lanes, "unroll": unroll,
                         "short_lanes": short, "tail_lanes": tail_short, "full_ms": full, "solve_ms": sum(sequence),
                         "sequence_ms": sequence, "max_difference": differs, "levels": levels})
         panels = "" if layout == "rows" else (f" of {panel_rows} rows, spread {pre.panel_spread}, unroll "
-                                              f"{panel_unroll}, unchecked {unchecked}")
+                                              f"{panel_unroll}, unchecked {unchecked}, wide {wide}")
         print(f"{layout}{panels}, entries {entry}, tail {pre.tiers}, {loads}, {lanes} lanes, unroll {unroll}, "
               f"short rows {short} lanes, "
               f"in the tail {tail_short}: P^-1 {full:.3f} ms with every world; a "
@@ -243,6 +272,7 @@ def main(argv=None) -> int:
               f"differs by {differs[0]:.3g} (every world), {differs[1]:.3g} (the last iteration)", flush=True)
     retype(pre, made, *made[1:])
     pre.unchecked_full = bool(kept[5])
+    pre.wide_from, pre.wide_lanes = kept_wide
     pre.whole_rows, pre.lanes = kept[:2]
     pre.tail(kept[2])
     pre.short_lanes, pre.tail_lanes = kept[3:5]

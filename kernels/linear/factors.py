@@ -409,6 +409,66 @@ panel_task = wp.types.vector(length=8, dtype=wp.int32)
 PANEL_UNROLL = 4  # columns a panel's lane loads at a time
 
 
+def _panel_columns(columns: int, dtype, rows: int, unroll: int, whole: bool, entry: tuple):
+    """``columns_of(acc, height, v0, stride, c0, q0, q1, lane, lanes, base, col, val, src)``: a panel
+    lane's walk (:func:`panel_kernel`), ``acc`` (``(rows x k,)``, the panel's sums row by row) plus
+    ``sum_q val[v0 + i stride + q] src[base + col[c0 + q], c]`` for each of its ``height`` rows ``i``
+    and columns ``c``, over the columns ``q = q0 + lane, q0 + lane + lanes, ... < q1``, ``unroll`` at
+    a time (their loads issued together, then summed in order)."""
+    index, value = entry
+    key = ("panel_columns", columns, dtype, rows, unroll, whole, index, value)
+    if key in _kernels:
+        return _kernels[key]
+    K, H, U = columns, rows, unroll
+    sums = wp.types.vector(length=K, dtype=dtype)
+    block = wp.types.vector(length=H * K, dtype=dtype)  # a panel's sums, row by row
+    loaded = wp.types.vector(length=U * K, dtype=dtype)
+    load_row = _row_load(K, dtype)
+
+    @wp.func
+    def operand(src: wp.array2d(dtype=dtype), j: int) -> sums:
+        """Row ``j`` of ``src``, ``(k,)``: read whole or indexed (:func:`_row_funcs`)."""
+        if wp.static(whole):
+            return load_row(src, j)
+        x = sums()
+        for c in range(K):
+            x[c] = src[j, c]
+        return x
+
+    @wp.func
+    def columns_of(acc: block, height: int, v0: int, stride: int, c0: int, q0: int, q1: int, lane: int, lanes: int,
+                   base: int, col: wp.array(dtype=index), val: wp.array(dtype=value),
+                   src: wp.array2d(dtype=dtype)) -> block:
+        """``acc`` plus the panel's columns ``q0 + lane, q0 + lane + lanes, ... < q1`` read from ``src``."""
+        total = acc + block()
+        q = wp.int32(q0 + lane)
+        while q + (U - 1) * lanes < q1:  # U whole columns left
+            xs = loaded()
+            for u in range(U):
+                x = operand(src, base + wp.int32(col[c0 + q + u * lanes]))
+                for c in range(K):
+                    xs[u * K + c] = x[c]
+            for u in range(U):
+                for i in range(H):
+                    if i < height:
+                        v = dtype(val[v0 + i * stride + q + u * lanes])
+                        for c in range(K):
+                            total[i * K + c] = total[i * K + c] + v * xs[u * K + c]
+            q = q + U * lanes
+        while q < q1:
+            x = operand(src, base + wp.int32(col[c0 + q]))
+            for i in range(H):
+                if i < height:
+                    v = dtype(val[v0 + i * stride + q])
+                    for c in range(K):
+                        total[i * K + c] = total[i * K + c] + v * x[c]
+            q = q + lanes
+        return total
+
+    _kernels[key] = columns_of
+    return columns_of
+
+
 def panel_kernel(columns: int, dtype, rows: int, lanes: int, unroll: int = PANEL_UNROLL, whole: bool = False,
                  compact: bool = False, entry: tuple | None = None, check: bool = True):
     """``factor_panel(tasks, first, col, val, scal, inp, out, count, worlds, spans, per)``: one
@@ -430,54 +490,12 @@ def panel_kernel(columns: int, dtype, rows: int, lanes: int, unroll: int = PANEL
     key = ("panel", columns, dtype, rows, lanes, unroll, whole, compact, index, value, check)
     if key in _kernels:
         return _kernels[key]
-    K, H, L, U = columns, rows, lanes, unroll
-    sums = wp.types.vector(length=K, dtype=dtype)
+    K, H, L = columns, rows, lanes
     block = wp.types.vector(length=H * K, dtype=dtype)  # a panel's sums, row by row
-    loaded = wp.types.vector(length=U * K, dtype=dtype)
     running, _ = _row_funcs(columns, dtype, 1, whole, (index, value))
     scatter_sum, scatter_place, KEPT = _lane_scatter(H * K, dtype, lanes)
     task_at = _task_at(compact)
-    load_row = _row_load(K, dtype)
-
-    @wp.func
-    def operand(src: wp.array2d(dtype=dtype), j: int) -> sums:
-        """Row ``j`` of ``src``, ``(k,)``: read whole or indexed (:func:`_row_funcs`)."""
-        if wp.static(whole):
-            return load_row(src, j)
-        x = sums()
-        for c in range(K):
-            x[c] = src[j, c]
-        return x
-
-    @wp.func
-    def columns_of(acc: block, height: int, v0: int, stride: int, c0: int, q0: int, q1: int, lane: int,
-                   base: int, col: wp.array(dtype=index), val: wp.array(dtype=value),
-                   src: wp.array2d(dtype=dtype)) -> block:
-        """``acc`` plus the panel's columns ``q0 + lane, q0 + lane + lanes, ... < q1`` read from ``src``."""
-        total = acc + block()
-        q = wp.int32(q0 + lane)
-        while q + (U - 1) * L < q1:  # U whole columns left
-            xs = loaded()
-            for u in range(U):
-                x = operand(src, base + wp.int32(col[c0 + q + u * L]))
-                for c in range(K):
-                    xs[u * K + c] = x[c]
-            for u in range(U):
-                for i in range(H):
-                    if i < height:
-                        v = dtype(val[v0 + i * stride + q + u * L])
-                        for c in range(K):
-                            total[i * K + c] = total[i * K + c] + v * xs[u * K + c]
-            q = q + U * L
-        while q < q1:
-            x = operand(src, base + wp.int32(col[c0 + q]))
-            for i in range(H):
-                if i < height:
-                    v = dtype(val[v0 + i * stride + q])
-                    for c in range(K):
-                        total[i * K + c] = total[i * K + c] + v * x[c]
-            q = q + L
-        return total
+    columns_of = _panel_columns(columns, dtype, rows, unroll, whole, (index, value))
 
     @wp.kernel(module="unique")
     def factor_panel(tasks: wp.array(dtype=panel_task), first: int, col: wp.array(dtype=index),
@@ -501,8 +519,8 @@ def panel_kernel(columns: int, dtype, rows: int, lanes: int, unroll: int = PANEL
                 base = t[7]
                 stride = t[4] + t[5]
                 # the diagonal block's inverse on the input, then the rows solved at earlier levels
-                acc = columns_of(acc, height, t[2], stride, t[3], 0, t[4], lane, base, col, val, inp)
-                acc = columns_of(acc, height, t[2], stride, t[3], t[4], stride, lane, base, col, val, out)
+                acc = columns_of(acc, height, t[2], stride, t[3], 0, t[4], lane, L, base, col, val, inp)
+                acc = columns_of(acc, height, t[2], stride, t[3], t[4], stride, lane, L, base, col, val, out)
         # the lanes' sums spread over them: each writes those it holds (sum m is the panel's number
         # first + m, row (first + m) // k)
         if wp.static(L == 1):  # (a thread holds them all)
@@ -523,6 +541,52 @@ def panel_kernel(columns: int, dtype, rows: int, lanes: int, unroll: int = PANEL
 
     _kernels[key] = factor_panel
     return factor_panel
+
+
+def wide_panel_kernel(columns: int, dtype, rows: int, unroll: int = PANEL_UNROLL, whole: bool = False,
+                      entry: tuple | None = None):
+    """``factor_wide_panel(tasks, first, col, val, inp, out, count, worlds, spans, per)``: one level of
+    the running worlds' panels alone (the tail: :func:`_task_at`'s ``compact``), a block of threads a
+    panel (``wp.launch_tiled`` of ``running x per`` blocks), for :func:`panel_kernel`'s ``columns``,
+    ``dtype``, ``rows``, ``unroll``, ``whole`` and ``entry``. In the tail threads are spare, and a
+    level lasts as long as its longest panel's walk: 32 lanes walk a panel of the root's 2,208
+    columns 69 columns each, 17 rounds of loads one after the other. Here the block's threads stride
+    the columns (``q = lane, lane + block_dim, ...``) and a tile sum adds their ``rows x k`` sums,
+    which the block's first thread writes. On the CPU a block has one thread: it walks every column."""
+    index, value = (wp.int32, dtype) if entry is None else entry
+    key = ("wide_panel", columns, dtype, rows, unroll, whole, index, value)
+    if key in _kernels:
+        return _kernels[key]
+    K, H = columns, rows
+    block = wp.types.vector(length=H * K, dtype=dtype)  # a panel's sums, row by row
+    task_at = _task_at(True)
+    columns_of = _panel_columns(columns, dtype, rows, unroll, whole, (index, value))
+
+    @wp.kernel(module="unique")
+    def factor_wide_panel(tasks: wp.array(dtype=panel_task), first: int, col: wp.array(dtype=index),
+                          val: wp.array(dtype=value), inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype),
+                          count: wp.array(dtype=wp.int32), worlds: wp.array(dtype=wp.int32),
+                          spans: wp.array(dtype=wp.vec2i), per: int):
+        slot, lane = wp.tid()
+        at = task_at(slot, first, count, worlds, spans, per)
+        if at < 0:
+            return  # (the whole block: no running world in this slot, or one past its tasks)
+        t = tasks[at]
+        height, stride, lanes = t[1], t[4] + t[5], wp.block_dim()
+        # the diagonal block's inverse on the input, then the rows solved at earlier levels
+        acc = columns_of(block(), height, t[2], stride, t[3], 0, t[4], lane, lanes, t[7], col, val, inp)
+        acc = columns_of(acc, height, t[2], stride, t[3], t[4], stride, lane, lanes, t[7], col, val, out)
+        total = wp.tile_sum(wp.tile(acc, preserve_type=True))
+        if lane == 0:
+            sums = total[0]
+            for i in range(H):
+                if i < height:
+                    for c in range(K):
+                        out[t[0] + i, c] = sums[i * K + c]
+
+    _kernels[key] = factor_wide_panel
+    return factor_wide_panel
+
 
 
 def running_worlds(columns: int):

@@ -75,6 +75,10 @@ PANEL_ROWS = 4
 # the columns a panel's lane takes, on CUDA (its lanes: a power of 2 up to 32), at full load and in
 # the tail (where threads are spare)
 PANEL_SPREAD = (8.0, 1.0)
+# in the tail, on CUDA, a level whose panels read at least WIDE_FROM columns on average takes a block of
+# WIDE_LANES threads a panel (kernels.wide_panel_kernel): there a level lasts as long as its longest
+# panel's walk, and the forward solve's last levels read up to 2,208 columns a panel
+WIDE_FROM, WIDE_LANES = 256.0, 128
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
 # a world's own refresh (panels): its block is factorized anew at its state, between steps, when its CG
@@ -146,7 +150,9 @@ class WorldFactors(WorldGroups):
     :data:`SHORT_LANES`, and at each tier, :data:`TAIL_LANES`), ``index_dtype`` (the entries'
     columns: ``uint16`` when every factor has at most :data:`NARROW_PLACES` places, else ``int32``);
     with ``layout="panels"``: ``panel_rows`` (:data:`PANEL_ROWS`), ``panel_spread``
-    (:data:`PANEL_SPREAD`) and ``panel_unroll`` (the columns a lane loads at a time),
+    (:data:`PANEL_SPREAD`) and ``panel_unroll`` (the columns a lane loads at a time), ``wide_from``
+    and ``wide_lanes`` (in the tail, the levels whose panels read that many columns on average take a
+    block of that many threads a panel: :data:`WIDE_FROM`, :data:`WIDE_LANES` on CUDA; None: never),
     ``unchecked_full`` (when every world runs, the panels' tasks do not test their world),
     ``world_ratio`` and ``world_floor`` (when a world's block is refactorized alone:
     :meth:`observe_worlds`; from :data:`WORLD_RATIO`, :data:`WORLD_FLOOR`; a floor None: never),
@@ -180,6 +186,7 @@ class WorldFactors(WorldGroups):
         # one on the CPU (4 Diamonds on the VM: P^-1 3.95 -> 2.98 and 3.69 -> 3.60 ms from 4 to 1)
         self.panel_rows, self.panel_spread = PANEL_ROWS, PANEL_SPREAD
         self.panel_unroll = kernels.PANEL_UNROLL if d.is_cuda else 1
+        self.wide_from, self.wide_lanes = (WIDE_FROM if d.is_cuda else None), WIDE_LANES
         # the entries' types: their values in `dtype`, their columns uint16 or int32 (set at the first
         # lay-out: :data:`NARROW_PLACES`)
         self.value_dtype, self.index_dtype = self.dtype, None
@@ -616,13 +623,21 @@ class WorldFactors(WorldGroups):
         return int(min(32, 2 ** max(0, math.ceil(math.log2(max(reads / spread, 1.0))))))
 
     def _panel_levels(self, k: int, tier: int, check: bool) -> None:
-        """:meth:`_levels` for panels: a launch a level, ``panel_lanes`` threads a panel."""
+        """:meth:`_levels` for panels: a launch a level, ``panel_lanes`` threads a panel (in the tail, a
+        block of ``wide_lanes`` threads a panel in the levels of wide panels)."""
         d = self.op.model.device
         compact = tier > 0
         entry = (self.index_dtype, self.value_dtype)
         for (tasks, col, val, levels, spans), inp, out in zip(self.solves, (self.u, self.y), (self.y, self.x),
                                                               strict=True):
             for j, (first, count, reads, most) in enumerate(levels):
+                if compact and self.wide_from is not None and reads >= self.wide_from:
+                    kernel = kernels.wide_panel_kernel(k, self.dtype, self.panel_height, self.panel_unroll,
+                                                       self.whole_rows, entry)
+                    wp.launch_tiled(kernel, dim=(tier * most,), inputs=[tasks, first, col, val, inp],
+                                    outputs=[out, self.running, self.running_list, spans[j], most],
+                                    block_dim=self.wide_lanes, device=d)
+                    continue
                 lanes = self.panel_lanes(reads, tier)
                 kernel = kernels.panel_kernel(k, self.dtype, self.panel_height, lanes, self.panel_unroll,
                                               self.whole_rows, compact, entry, check)
