@@ -352,6 +352,30 @@ def test_a_world_whose_cg_grew_is_refactorized_alone():
     assert pre.refresh_worlds() == 0  # done: nothing due until its count grows again
 
 
+def test_a_world_installed_beside_a_solve_passes_over_that_solves_count():
+    """The step refreshes the worlds beside its first solve (``solving``): that solve ran on the
+    old factors, so the count it reports for a world installed meanwhile neither marks it due again
+    nor starts its new factor's count; the world's next solve does."""
+    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
+    sim.step()
+    pre = WorldFactors(sim.operator, 3, "float64", share=False)
+    pre.world_ratio, pre.world_lag = 2.0, 0
+    pre.prepare()
+    for _ in range(2):
+        sim.step()
+    pre.prepare()
+    pre.observe_worlds(np.array([6, 6, 6, 6]))
+    pre.observe_worlds(np.array([6, 13, 6, 6]))  # world 1 due
+    assert pre.refresh_worlds(solving=True) == 1
+    pre.observe_worlds(np.array([6, 30, 6, 6]))  # the solve in flight: world 1 on its old factor
+    assert not pre.worlds_due  # not due again
+    pre.observe_worlds(np.array([6, 7, 6, 6]))  # its first solve on the new factor: 7 to grow from
+    pre.observe_worlds(np.array([6, 14, 6, 6]))
+    assert not pre.worlds_due  # (14 is not more than twice 7)
+    pre.observe_worlds(np.array([6, 15, 6, 6]))
+    assert pre.worlds_due and pre.refresh_worlds() == 1
+
+
 def test_a_boundary_sends_the_slowest_worlds_first_and_at_most_its_batch():
     """With a batch of one block a boundary, of two worlds due the one whose CG took more goes
     first (its frame becomes its current rotations); the other, still grown at its next solve,

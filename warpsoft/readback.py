@@ -53,9 +53,12 @@ class Readback:
 
     def read(self) -> dict[str, np.ndarray]:
         """One transfer of the buffer; returns a copy of each array, by name, in its numpy shape
-        (vector and matrix elements as trailing axes)."""
+        (vector and matrix elements as trailing axes). It waits for the current stream alone,
+        where the gather ran (work on other streams, such as the copies to the refactorizing
+        workers, goes on beside)."""
         if self._in_place is not None:
             return {name: a.numpy().copy() for name, a in self._in_place.items()}
-        wp.copy(self._host, self._buffer)
-        wp.synchronize_device(self.device)
+        stream = wp.get_stream(self.device)
+        wp.copy(self._host, self._buffer, stream=stream)
+        wp.synchronize_stream(stream)
         return {name: view.copy() for name, view in self._views.items()}

@@ -230,8 +230,9 @@ class Simulator:
                                      else np.zeros(0) for effs in self.rows.effectors]
         self.rigid = RigidBodies(m, self.rows) if m.num_rigid else None  # (their rows are contacts)
         self.device_inverse = None  # the inverse model's QP on the device, when asked for or faster
-        inverse_worlds = [w for w, s in enumerate(m.scenes) if s.inverse and self.rows is not None
-                          and self.rows.world_actuators[w]]
+        # the inverse-model worlds with actuators (a step with any of them resolves a QP)
+        self.inverse_worlds = inverse_worlds = [w for w, s in enumerate(m.scenes) if s.inverse and self.rows is not None
+                                                and self.rows.world_actuators[w]]
         small = bool(inverse_worlds) and max(self.rows.world_actuators[w] for w in inverse_worlds) <= AUTO_DEVICE_QP
         # their QPCC runs on the host
         touching = [w for w in inverse_worlds if m.scenes[w].touches]

@@ -11,6 +11,7 @@ import math
 import time
 import warnings
 from contextlib import contextmanager
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -49,32 +50,34 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
     stats = StepStats(sim.step_index + 1, sim.time + m.dt, worlds=Worlds(WorldRecord(m.num_worlds)))
     start = time.perf_counter()
     actuated = rows is not None and rows.num_columns > 0  # rows that carry a force: actuators, contacts
-    inverse = actuated and any(s.inverse and rows.world_actuators[w] for w, s in enumerate(m.scenes))
+    inverse = actuated and bool(sim.inverse_worlds)
     host_qp = inverse and sim.device_inverse is None
     host_resolve = host_qp or sim.host_gauss_seidel  # the step splits into two graphs around it
     host_inputs(sim, stats.time, controls)  # user schedules, evaluated once; uploads only when they change
-    if getattr(sim.solver, "worlds_due", False):
-        with stage(sim, stats, "refresh_worlds"):  # the worlds whose preconditioner went stale, made anew
-            sim.solver.refresh_worlds()
+    # host work that no launch waits for, done while the next graph runs (run's ``beside``): first
+    # the worlds whose preconditioner went stale, made anew (the step's boundary is its first
+    # graph), then each iteration's records
+    later = [("refresh_worlds", sim.solver.refresh_worlds)] if getattr(sim.solver, "worlds_due", False) else []
     newton = sim.newton
     factorizations = reuse_factor(sim)
     newton.begin_step()
     first = True
     while True:
-        host = iterate(sim, stats, actuated, host_resolve, first)
+        host = iterate(sim, stats, actuated, host_resolve, first, later)
         while newton.judge(host):  # line search: a world that overshot retries a shorter step
             host = run(sim, stats, "line_search", [("correct", lambda: newton.advance(correction(sim, actuated, False),
                                                                                       actuated, retry=True)),
                                                    ("linearize", lambda: relinearize(sim, actuated))],
-                       capturable(sim))
+                       capturable(sim), beside=later)
             watch.health(sim, stats, host, warn=False)
-        if rows is not None:
-            record.keep_gaps(sim, host, ~newton.done)  # (the worlds that moved in this iteration)
+        if rows is not None:  # (the worlds that moved in this iteration)
+            later.append((None, partial(record.keep_gaps, sim, host, ~newton.done)))
         if not newton.go_on():
             break
         if first:  # the next solves start their corrections from 0: keep the step's motion to warm-start the next step
             wp.copy(newton.warm, sim.dx_free[0])
         first = False
+    run_beside(stats, later)  # (the last iteration's: nothing runs beside them)
     if not first:
         wp.copy(sim.dx_free[0], newton.warm)
     record_newton(sim, stats)
@@ -99,8 +102,9 @@ def step(sim: Simulator, controls: list[Control | None]) -> StepStats:
 
 
 def iterate(sim: Simulator, stats: StepStats, actuated: bool, host_resolve: bool,
-            first: bool) -> dict[str, np.ndarray]:
-    """One Newton iteration (the first also starts the step), read back in one transfer."""
+            first: bool, later: list) -> dict[str, np.ndarray]:
+    """One Newton iteration (the first also starts the step), read back in one transfer.
+    ``later``: host work run beside its first graph (:func:`run`), to which it adds its own."""
     captured = capturable(sim)
     if not first and sim.factor_reuse:  # the step iterates: on the tangent of where it is (the worlds
         sim.solver.keep[:] = sim.newton.done  # done are held: their factors serve no solve of this step)
@@ -112,15 +116,17 @@ def iterate(sim: Simulator, stats: StepStats, actuated: bool, host_resolve: bool
                                                      scaled_forces=made_forces(sim, actuated))),
               ("linearize", lambda: relinearize(sim, actuated))]
     if host_resolve:  # two graphs around the host's QP or Gauss-Seidel
-        before = run(sim, stats, "device_before_qp" if first else "newton_before_qp", solve, captured, sim.before_qp)
+        before = run(sim, stats, "device_before_qp" if first else "newton_before_qp", solve, captured, sim.before_qp,
+                     later)
         with stage(sim, stats, "resolve"):
             resolve_on_host(sim, stats, before)
         host = run(sim, stats, "device_after_qp", finish, captured)
     else:  # the whole iteration as one graph
-        host = run(sim, stats, "device_step" if first else "newton_step", solve + finish, captured)
+        host = run(sim, stats, "device_step" if first else "newton_step", solve + finish, captured, beside=later)
     res = sim.solver.result(host) if captured else sim.solve_result
-    if captured:
-        sim.solver.finish(res)  # the preconditioner learns the iterations (solve() does it itself)
+    if captured:  # the preconditioner learns the iterations (solve() does it itself); each world's
+        sim.solver.finish(res, worlds=False)  # (for a later step's boundary) beside the next graph
+        later.append((None, partial(sim.solver.finish_worlds, res)))
     finish_solve(sim, stats, res)
     watch.health(sim, stats, host, warn=False)
     return host
@@ -133,34 +139,51 @@ def capturable(sim: Simulator) -> bool:
 
 
 def run(sim: Simulator, stats: StepStats, name: str, parts: list, captured: bool,
-        readback=None) -> dict[str, np.ndarray]:
+        readback=None, beside: list | None = None) -> dict[str, np.ndarray]:
     """Run ``parts`` (stage name, work), then gather ``readback`` (the step's by default) and read
-    it: as one replayed graph timed as ``name`` if ``captured``, else stage by stage."""
+    it: as one replayed graph timed as ``name`` if ``captured``, else stage by stage. ``beside``:
+    ``[(stage name or None, work)]``, host work run (and taken off the list) once the graph is
+    launched, while the device runs it (after the stages, elsewhere), before the read; what it
+    queues on the device follows the graph. A named one is timed as its stage, which overlaps the
+    graph's."""
     readback = readback or sim.after_step
     if captured:
-        replay(sim, stats, name, lambda: ([work() for _, work in parts], readback.gather()))
+        replay(sim, stats, name, lambda: ([work() for _, work in parts], readback.gather()), beside)
     else:
         for what, work in parts:
             with stage(sim, stats, what):
                 work()
         readback.gather()
+        run_beside(stats, beside)
     return readback.read()
 
 
-def replay(sim: Simulator, stats: StepStats, name: str, work) -> None:
+def run_beside(stats: StepStats, beside: list | None) -> None:
+    """Run the host work ``beside`` (:func:`run`) in its order, emptying it; a named one timed."""
+    while beside:
+        name, work = beside.pop(0)
+        t0 = time.perf_counter()
+        work()
+        if name is not None:
+            stats.stages[name] = stats.stages.get(name, 0.0) + time.perf_counter() - t0
+
+
+def replay(sim: Simulator, stats: StepStats, name: str, work, beside=None) -> None:
     """Run ``work`` as a CUDA graph: captured once per pair of state buffers (they swap each step)
     and replayed; timed as the stage ``name``. (On the CPU device, where nothing is captured,
-    ``work`` simply runs: the same flow, for tests.)"""
+    ``work`` simply runs: the same flow, for tests.) ``beside``: host work run once the graph is
+    launched (:func:`run`)."""
     key = (name, sim.state.q.ptr)
     with stage(sim, stats, name):
         if not sim.model.device.is_cuda:
             work()
-            return
-        if key not in sim.graphs:
-            with wp.ScopedCapture(device=sim.model.device) as capture:
-                work()
-            sim.graphs[key] = capture.graph
-        wp.capture_launch(sim.graphs[key])
+        else:
+            if key not in sim.graphs:
+                with wp.ScopedCapture(device=sim.model.device) as capture:
+                    work()
+                sim.graphs[key] = capture.graph
+            wp.capture_launch(sim.graphs[key])
+        run_beside(stats, beside)  # (inside the graph's stage: with timing, its sync waits for the graph after it)
 
 
 def reuse_factor(sim: Simulator) -> int | None:
@@ -587,12 +610,14 @@ def row_inputs(host: np.ndarray, values: np.ndarray, delta: np.ndarray, a: slice
 
 @contextmanager
 def stage(sim: Simulator, stats: StepStats, name: str):
-    """Time a stage (s); on CUDA with ``timing``, synchronize around it so the time is its own."""
+    """Time a stage (s); on CUDA with ``timing``, synchronize the step's stream around it so the
+    time is its own (not the device: the copies to the refactorizing workers run on a stream of
+    their own, beside the step)."""
     sync = sim.timing and sim.model.device.is_cuda
     if sync:
-        wp.synchronize_device(sim.model.device)
+        wp.synchronize_stream(wp.get_stream(sim.model.device))
     t0 = time.perf_counter()
     yield
     if sync:
-        wp.synchronize_device(sim.model.device)
+        wp.synchronize_stream(wp.get_stream(sim.model.device))
     stats.stages[name] = stats.stages.get(name, 0.0) + time.perf_counter() - t0

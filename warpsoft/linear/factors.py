@@ -84,7 +84,8 @@ POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CP
 # a world's own refresh (panels): its block is factorized anew at its state, between steps, when its CG
 # needed more than WORLD_RATIO times the iterations of its first solve after its block's last
 # factorization, and more than WORLD_FLOOR (None: never), by worker processes beside the steps and
-# installed WORLD_LAG step boundaries later (warpsoft/linear/refactor.py); at most WORLD_BATCH blocks
+# installed WORLD_LAG step boundaries later (a step's boundary: its first solve, beside which the host
+# does this work) (warpsoft/linear/refactor.py); at most WORLD_BATCH blocks
 # sent at one boundary (None: every one due), the slowest worlds' first (a fixed number, so that a
 # trajectory never depends on the machine's cores). On by default: on the H200, 1024 Diamonds over
 # the scene's 100 steps, the steps took 59.4 ms on average with it (a floor of 10, a ratio of 1.5,
@@ -235,6 +236,7 @@ class WorldFactors(WorldGroups):
         # per block: its world's CG count where due for its own refresh (else 0); whether it serves one world alone
         self._due = self._own = None
         self._value_start = None  # per direction: each block's first value (panels), and the end
+        self._frames = None  # (nodes,) mat33d: each world being refactorized alone, its nodes' rotations factorized
         self.tail(sorted({math.ceil(f * m.num_worlds) for f in TAIL}) if d.is_cuda else [])
 
     def tail(self, tiers: list[int]) -> None:
@@ -344,15 +346,19 @@ class WorldFactors(WorldGroups):
         ``world_ratio`` times its first solve's after its block's last factorization, and past
         ``world_floor``, marks its block due for :meth:`refresh_worlds`, with that count (panels
         only; a block that serves one world alone: a shared one is made at its first world's
-        state, and its other worlds would then step otherwise than alone)."""
+        state, and its other worlds would then step otherwise than alone). A world installed while
+        this solve ran (:meth:`refresh_worlds` with ``solving``) solved on its old factor: its count
+        is passed over, and its next solve's starts the new factor's."""
         if self.world_floor is None or self.block_of is None or self.layout != "panels":
             return
         its = np.asarray(iterations, dtype=np.int64)
         if self._due is None:
             self._start_own()
-        new = self._world_first == 0
-        self._world_first[new] = np.maximum(its[new], 1)
-        grown = ~new & (its > np.maximum(self.world_ratio * self._world_first, self.world_floor))
+        first = self._world_first
+        new, passed = first == 0, first < 0
+        first[new] = np.maximum(its[new], 1)
+        first[passed] = 0
+        grown = ~new & ~passed & (its > np.maximum(self.world_ratio * first, self.world_floor))
         np.maximum.at(self._due, self.block_of[grown], its[grown])
         self._due[~self._own] = 0
 
@@ -368,15 +374,18 @@ class WorldFactors(WorldGroups):
         pending = self.refactorizer is not None and bool(self.refactorizer.pending)
         return pending or (self._due is not None and bool(self._due.any()))
 
-    def refresh_worlds(self) -> int:
-        """At a step boundary (before the step's graphs): send the blocks due (:meth:`observe_worlds`;
+    def refresh_worlds(self, solving: bool = False) -> int:
+        """At a step boundary (the step runs it beside its first solve): send the blocks due (:meth:`observe_worlds`;
         at most ``world_batch``, those of the worlds whose CG took the most) to be factorized anew
         at its world's last linearization (:mod:`~warpsoft.linear.refactor`), and install those sent
         ``world_lag`` boundaries ago: their values written in place (the captured graphs read the
         same arrays), their worlds' frame the node rotations they were factorized at. Host work
         here: a due world's element blocks made and their copy into its worker's shared memory
         queued (beside the graphs, on CUDA), a job's values copied from it to the device; the
-        system's sum, CHOLMOD and the panels run in the worker. Returns the blocks installed."""
+        system's sum, CHOLMOD and the panels run in the worker. ``solving``: a solve on the current
+        factors is in flight (the step runs this beside its first graph): what this queues follows
+        it on the device, and its iterations, observed next, are the installed worlds' old factors'
+        (:meth:`observe_worlds` passes them over). Returns the blocks installed."""
         m, d = self.op.model, self.op.model.device
         if self.refactorizer is None and self._due is not None:
             self.refactorizer = self._refactorizer()
@@ -390,7 +399,7 @@ class WorldFactors(WorldGroups):
         # grows on the old factor
         due = [] if self._due is None else [int(b) for b in np.flatnonzero(self._due) if int(b) not in refactor.pending]
         due = sorted(sorted(due, key=lambda b: -int(self._due[b]))[:self.world_batch or len(due)])
-        if due:  # their worlds' element blocks, one world after another, and every node's rotation now
+        if due:  # their worlds' element blocks, one world after another, and their nodes' rotations now
             worlds = [int(self.first_world[b]) for b in due]
             ranges = [(int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])) for w in worlds]
             blocks = wp.empty(sum(16 * (e1 - e0) for e0, e1 in ranges), dtype=wp.mat33d, device=d)
@@ -399,18 +408,22 @@ class WorldFactors(WorldGroups):
                 self.op.elastic.blocks(self.op.rot, blocks[at:at + 16 * (e1 - e0)], (e0, e1))
                 at += 16 * (e1 - e0)
             spans = [(int(m.world_node_start[w]), int(m.world_node_start[w + 1])) for w in worlds]
-            refactor.submit(due, worlds, blocks, self.op.stiffness_scale, self.op.mass_scale, spans,
-                            wp.clone(self.node_rot))
+            if self._frames is None:
+                self._frames = wp.empty_like(self.node_rot)
+            for lo, hi in spans:  # (a world being made is not sent again: its nodes' stay until installed)
+                wp.copy(self._frames, self.node_rot, dest_offset=lo, src_offset=lo, count=hi - lo)
+            refactor.submit(due, worlds, blocks, self.op.stiffness_scale, self.op.mass_scale, spans, self._frames)
         if self._due is not None:
             self._due[:] = 0
-        jobs = refactor.due()
+        jobs, copies = refactor.due(), []
         for job in jobs:
             b = job.block
             # (_factorized names the world of an error; the worker has checked the ordering itself)
             _, *values = self._factorized(m, b, job.world, lambda j=job: (self.orders[j.block], *refactor.values(j)))
             for (_, _, val, _, _), start, v in zip(self.solves, self._value_start, values, strict=True):
-                wp.copy(val, v, dest_offset=int(start[b]), count=v.size)  # (from the shared memory)
-            self._world_first[job.world] = 0
+                copies.append((val, int(start[b]), v))  # (from the shared memory)
+            self._world_first[job.world] = -1 if solving else 0
+        refactor.install(copies)
         if jobs:
             self.take_frame([job.span for job in jobs], [job.frame for job in jobs])
         self.world_refreshes += len(jobs)

@@ -155,10 +155,16 @@ class PCG:
         graph ran, read :meth:`result` and pass it to :meth:`finish`."""
         self._run(b, x)
 
-    def finish(self, res: SolveResult) -> None:
-        """After a solve: tell the preconditioner how many iterations it took, and each world's
-        where it keeps a factorization per world (it refreshes them when they grow)."""
+    def finish(self, res: SolveResult, worlds: bool = True) -> None:
+        """After a solve: tell the preconditioner how many iterations it took (it goes stale when
+        they grow), and with ``worlds``, :meth:`finish_worlds`."""
         self.precond.observe(res.iterations)
+        if worlds:
+            self.finish_worlds(res)
+
+    def finish_worlds(self, res: SolveResult) -> None:
+        """After a solve: tell the preconditioner each world's iterations, where it keeps a
+        factorization per world (it refreshes them at a later step boundary when they grow)."""
         if res.world_iterations is not None and hasattr(self.precond, "observe_worlds"):
             self.precond.observe_worlds(res.world_iterations)
 
@@ -169,9 +175,10 @@ class PCG:
         return bool(getattr(self.precond, "worlds_due", False))
 
     def refresh_worlds(self) -> None:
-        """Host work before a step's graphs: the due worlds' own refreshes sent to be made, those
-        made installed (the graphs then read the new factors in place)."""
-        self.precond.refresh_worlds()
+        """Host work beside the step's first solve (its graph launched): the due worlds' own
+        refreshes sent to be made, those made installed (queued after that solve: the later ones
+        read the new factors in place)."""
+        self.precond.refresh_worlds(solving=True)
 
     def solve(self, b: wp.array, x: wp.array) -> SolveResult:
         """Solve in place; ``x`` (``(k, n)`` vec3d) holds the warm start on entry."""

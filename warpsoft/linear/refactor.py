@@ -18,7 +18,10 @@ worker processes do it while the device runs the steps:
   new factor;
 - :attr:`Refactorizer.lag` boundaries later (one by default: the next step's) the worker's
   values are copied from the shared memory to the device in place, and the frame taken, after
-  waiting for the worker if it has not finished. The trajectory therefore never depends on how
+  waiting for the worker if it has not finished. On CUDA they cross to the device on the side
+  stream, into a buffer of their own, while the step's solve in flight still reads the old ones;
+  the step's stream then moves them in place (device to device: 17 MB of four Diamonds' values
+  took their time in the step's across the bus). The trajectory therefore never depends on how
   fast the host was; with a lag of 0 the factor is installed at the boundary that found it due.
 
 Each block has its worker (its index modulo the workers) and its place in that worker's shared
@@ -177,8 +180,9 @@ def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type) -> None:
 class Job:
     """A block being refactorized: ``block`` and its ``world``, the boundary it is installed at
     (``at``), its number ``id``, the world's nodes ``span`` ``(lo, hi)`` and their rotations
-    ``frame`` ``(nodes,)`` mat33d at the linearization factorized (every node's, on the device);
-    ``held``: the device arrays its copies read, kept until they are done."""
+    ``frame`` ``(nodes,)`` mat33d on the device, holding the world's nodes' rotations at the
+    linearization factorized (in its span); ``held``: the device arrays its copies read, kept until
+    they are done."""
 
     block: int
     world: int
@@ -239,7 +243,8 @@ class Refactorizer:
         # (after the fork: CUDA may keep page-locked memory out of forked children)
         self._locked = _page_lock(device, self._arenas)
         self.page_locked = bool(self._locked) and len(self._locked) == len(self._arenas)
-        self._side = wp.Stream(device) if device.is_cuda else None  # the copies to the workers
+        self._side = wp.Stream(device) if device.is_cuda else None  # the copies to the workers, and back
+        self._staging, self._staged = None, None  # values on their way in (CUDA), and the event they left it at
         self._finalizer = weakref.finalize(self, _shut_down, self._procs, self._locked, device, self._arenas)
 
     @staticmethod
@@ -285,8 +290,8 @@ class Refactorizer:
         ``lag`` boundaries after the current one. ``elements``: mat33d on the device (kept until
         copied), the worlds' element blocks one world after another (each world's ``16 e``, in the
         order of ``blocks``); the operator's scales; ``spans``: each world's nodes ``(lo, hi)``;
-        ``frame``: ``(nodes,)`` mat33d, every node's rotation at the linearization factorized (kept
-        on the device until installed)."""
+        ``frame``: ``(nodes,)`` mat33d, its worlds' nodes' rotations at the linearization factorized
+        (read, on the device, where installed)."""
         first = self.submitted
         marks = wp.array(np.arange(first + 1, first + 1 + len(blocks), dtype=np.int64), dtype=wp.int64,
                          device=elements.device)  # (each copied after its blocks)
@@ -366,6 +371,34 @@ class Refactorizer:
         if error is not None:
             raise error
         return self._views(job.block)[2]
+
+    def install(self, copies: list[tuple[wp.array, int, wp.array]]) -> None:
+        """Copy installed values to the device: ``copies`` ``(dest, offset, values)``, each CPU
+        ``values`` (:meth:`values`) to ``dest[offset:]``. On CUDA through a device buffer: host to
+        device on the side stream, beside the work already queued (the solve in flight still reads
+        the old values), then in place on the current stream, after that work."""
+        if not copies:
+            return
+        if self._side is None:
+            for dest, offset, values in copies:
+                wp.copy(dest, values, dest_offset=offset, count=values.size)
+            return
+        device, total = copies[0][0].device, sum(values.size for _, _, values in copies)
+        main = wp.get_stream(device)
+        if self._staging is None or self._staging.size < total:  # (a larger one: the last is freed after its copies)
+            self._staging = wp.empty(total, dtype=copies[0][0].dtype, device=device)
+        elif self._staged is not None:
+            self._side.wait_event(self._staged)  # (the last installation's values out of it first)
+        at = 0
+        for _, _, values in copies:
+            wp.copy(self._staging, values, dest_offset=at, count=values.size, stream=self._side)
+            at += values.size
+        main.wait_event(self._side.record_event())
+        at = 0
+        for dest, offset, values in copies:
+            wp.copy(dest, self._staging, dest_offset=offset, src_offset=at, count=values.size, stream=main)
+            at += values.size
+        self._staged = main.record_event()
 
     def next_boundary(self) -> None:
         """Count a step boundary."""
