@@ -10,18 +10,20 @@ DOFs on the 2-core VM, and 30-55 ms more the first time (the supernodes' analysi
 step, one block after another, it cost 1.6 s a step on the H200's host for 1024 Diamonds. Here
 worker processes do it while the device runs the steps:
 
-- at the step boundary where a block is found due, its world's element blocks at the last
-  linearization are copied from the device into memory the block's worker shares, on a stream of
-  their own beside the step's graphs, followed by the job's number (its ``ready`` mark); the
-  worker is told at once (a few numbers down a pipe) and starts when the mark has landed. That
+- at the step boundary where a block is found due (the step's first graph, beside which the host
+  does this work), its world's element blocks at the last linearization are copied from the
+  device into memory the block's worker shares, on a stream of their own beside the step's
+  graphs, followed by the job's number (its ``ready`` mark); the worker is told at once (a few
+  numbers down a pipe) and starts when the mark has landed. That
   linearization's node rotations are kept on the device, to become the world's frame with the
   new factor;
-- :attr:`Refactorizer.lag` boundaries later (one by default: the next step's) the worker's
+- :attr:`Refactorizer.lag` boundaries later (two by default: WORLD_LAG of factors.py) the worker's
   values are copied from the shared memory to the device in place, and the frame taken, after
   waiting for the worker if it has not finished. On CUDA they cross to the device on the side
   stream, into a buffer of their own, while the step's solve in flight still reads the old ones;
-  the step's stream then moves them in place (device to device: 17 MB of four Diamonds' values
-  took their time in the step's across the bus). The trajectory therefore never depends on how
+  the step's stream then moves them in place, device to device (a Diamond's values are about
+  4 MB, and 1024 Diamonds install about 4 a step: across the bus in the step's stream, they would
+  hold its next solve for that time). The trajectory therefore never depends on how
   fast the host was; with a lag of 0 the factor is installed at the boundary that found it due.
 
 Each block has its worker (its index modulo the workers) and its place in that worker's shared
