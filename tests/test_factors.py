@@ -352,18 +352,27 @@ def test_a_world_whose_cg_grew_is_refactorized_alone():
     assert pre.refresh_worlds() == 0  # done: nothing due until its count grows again
 
 
+def factorized_then_stepped(steps: int, **settings) -> tuple:
+    """The four designs after a step, their factors made there (float64, one block a world) with
+    ``settings`` (attributes of the factors), then ``steps`` steps on, the node rotations taken
+    there. Returns the simulator and the factors."""
+    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
+    sim.step()
+    pre = WorldFactors(sim.operator, 3, "float64", share=False)
+    for name, value in settings.items():
+        setattr(pre, name, value)
+    pre.prepare()
+    for _ in range(steps):
+        sim.step()
+    pre.prepare()
+    return sim, pre
+
+
 def test_a_world_installed_beside_a_solve_passes_over_that_solves_count():
     """The step refreshes the worlds beside its first solve (``solving``): that solve ran on the
     old factors, so the count it reports for a world installed meanwhile neither marks it due again
     nor starts its new factor's count; the world's next solve does."""
-    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
-    sim.step()
-    pre = WorldFactors(sim.operator, 3, "float64", share=False)
-    pre.world_ratio, pre.world_lag = 2.0, 0
-    pre.prepare()
-    for _ in range(2):
-        sim.step()
-    pre.prepare()
+    _, pre = factorized_then_stepped(2, world_ratio=2.0, world_lag=0)
     pre.observe_worlds(np.array([6, 6, 6, 6]))
     pre.observe_worlds(np.array([6, 13, 6, 6]))  # world 1 due
     assert pre.refresh_worlds(solving=True) == 1
@@ -407,14 +416,7 @@ def test_a_world_refactorized_beside_the_step_is_installed_a_boundary_later():
     state and installed at the next boundary, whatever the worlds did in between: until then its
     world's ``P^-1`` is unchanged; then the world's frame is its node rotations of the state
     factorized, and its ``Q`` turns from those to the current ones."""
-    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
-    sim.step()
-    pre = WorldFactors(sim.operator, 3, "float64", share=False)
-    pre.world_floor, pre.world_lag = 10, 1
-    pre.prepare()
-    for _ in range(2):
-        sim.step()
-    pre.prepare()
+    sim, pre = factorized_then_stepped(2, world_floor=10, world_lag=1)
     r = wp.array(np.random.default_rng(4).standard_normal((3, sim.model.num_nodes, 3)), dtype=wp.vec3d)
     before, after = wp.zeros_like(r), wp.zeros_like(r)
     pre.apply(r, before)
