@@ -223,9 +223,9 @@ def test_ramp_inputs_are_evaluated_at_once_as_each_would_be_alone(monkeypatch, a
     before and after; the step evaluates a batch's ramps in one array expression (from
     ``RAMPS_AT_ONCE`` of them; 0 here: always), to the bit what each gives called alone, beside
     numbers and other schedules. Bad numbers are named."""
-    from warpsoft import step
+    from warpsoft import inputs
 
-    monkeypatch.setattr(step, "RAMPS_AT_ONCE", at_once)
+    monkeypatch.setattr(inputs, "RAMPS_AT_ONCE", at_once)
     ramps = [ws.Ramp(0.004, 0.05), ws.Ramp(2.0, 0.0, start=0.1, initial=1.0), ws.Ramp(-3e-3, 1.5, 0.2, 5e-4)]
     assert ramps[0](0.0) == 0.0 and ramps[0](0.025) == pytest.approx(0.002) and ramps[0](1.0) == 0.004
     assert ramps[1](0.0999) == 1.0 and ramps[1](0.1) == 2.0  # duration 0: a step at its start

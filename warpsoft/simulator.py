@@ -256,7 +256,7 @@ class Simulator:
         self.report_layout = None  # where each world's named rows are (warpsoft.record.Layout), at the first step
         self._stepped = False
         self.values = None  # the actuator inputs of the current step, (rows,)
-        self.own_inputs = None  # the actuators' own inputs laid out (warpsoft.step.own_inputs), at the first step
+        self.own_inputs = None  # the actuators' own inputs laid out (warpsoft.inputs.own_inputs), at the first step
         # on CUDA, the device part of a step is replayed as graphs when the solver allows it
         self.capture = bool(graphs) and d.is_cuda
         self.graphs: dict = {}

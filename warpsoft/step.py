@@ -19,17 +19,14 @@ import warp as wp
 
 from warpsoft.kernels.elastic import geometry
 from warpsoft.kernels.linear import cg as linalg
-from warpsoft.kernels.resolve import gauss_seidel as gs_kernels
 from warpsoft.kernels.rows import common as row_kernels
 
 from . import record, watch
-from .errors import SceneError, SimulationError
+from .errors import SimulationError
+from .inputs import host_inputs
 from .launch import launch
 from .newton import zero_moving
-from .resolve import RowInputs, solve_inverse
-from .resolve.qpcc import ContactQP, solve_inverse_contacts
-from .resolve.qpcc_friction import FrictionQP, solve_inverse_friction
-from .scene.actuator import Ramp
+from .resolve.host import resolve_on_host
 from .state import Control
 from .stats import ConvergenceWarning, StepStats, WorldRecord, Worlds
 
@@ -409,87 +406,6 @@ def convergence_advice(sim: Simulator) -> str:
     return f"{why}; {todo}"
 
 
-def host_inputs(sim: Simulator, t: float, controls: list[Control | None]) -> None:
-    """What the user's Python decides for this step, computed once and copied in one go each:
-    the kinematic frames' poses, time-dependent loads, effector targets, actuator inputs (only
-    when they changed)."""
-    m, rows = sim.model, sim.rows
-    if sim.driven is not None:
-        sim.driven.set_time(t)  # where the kinematic frames carry their nodes
-    if m.time_dependent_loads:
-        sim.f_ext.assign(m.external_forces(t) + (m.f_const_np if m.f_const is not None else 0.0))
-    if rows is not None:
-        rows.set_time(t)  # effector rows measure x - target
-        if rows.num_actuators:
-            sim.values = actuator_values(sim, t, controls)
-            sim.gauss_seidel.set_values(sim.values)
-
-
-def actuator_values(sim: Simulator, t: float, controls: list[Control | None]) -> np.ndarray:
-    """The input of every actuator row at time ``t`` (``(rows,)``): a Control's value, else the
-    actuator's own (a number, or a schedule called once here: :func:`own_inputs`)."""
-    rows, values = sim.rows, own_inputs(sim, t)
-    for w, (acts, start, control) in enumerate(zip(rows.actuators, rows.world_row_start.tolist(), controls,
-                                                   strict=False)):
-        given = control.inputs if control is not None else None
-        if not given:
-            continue
-        unknown = set(given) - {a.name for a in acts}
-        if unknown:
-            raise SceneError(f"control{sim.world_label(w)}: no actuator named {', '.join(sorted(unknown))}")
-        for k, a in enumerate(acts):
-            if a.name in given:
-                v = float(given[a.name])
-                if not math.isfinite(v):
-                    raise SceneError(f"control{sim.world_label(w)}: input of {a.kind} '{a.name}' must be finite, "
-                                     f"got {v}")
-                values[start + k] = v
-    return values
-
-
-RAMPS_AT_ONCE = 32  # ramps from which one NumPy expression evaluates them (a few are faster called)
-
-
-def own_inputs(sim: Simulator, t: float) -> np.ndarray:
-    """Every actuator row's own input at ``t`` (``(rows,)``): the numbers laid out once, at the
-    first call, the :class:`~warpsoft.scene.actuator.Ramp` inputs evaluated all at once, and the
-    other schedules called in one loop; a schedule that raises or gives no finite number is then
-    named by :meth:`~warpsoft.scene.actuator.Actuator.input_at`, as each input was read before
-    (1024 Diamonds, 4096 cable schedules on the CPU VM: 2.8-5.7 -> 1.0-2.1 ms a step as one loop;
-    as ramps, docs/performance.md)."""
-    if sim.own_inputs is None:
-        rows, base, place, schedules, ramps = sim.rows, np.zeros(sim.rows.num_rows), [], [], []
-        for acts, start in zip(rows.actuators, rows.world_row_start.tolist(), strict=False):
-            for k, a in enumerate(acts):
-                if isinstance(a.value, Ramp):
-                    ramps.append((start + k, a.value))
-                elif callable(a.value):
-                    place.append(start + k)
-                    schedules.append(a)
-                else:
-                    base[start + k] = a.value
-        ramp_rows = np.array([r for r, _ in ramps], dtype=np.int64)
-        ramp_table = np.array([ramp.row() for _, ramp in ramps], dtype=np.float64).reshape(-1, 4)
-        sim.own_inputs = (base, np.array(place, dtype=np.int64), [a.value for a in schedules], schedules,
-                          ramp_rows, ramp_table, [ramp for _, ramp in ramps])
-    base, place, calls, schedules, ramp_rows, ramp_table, ramp_calls = sim.own_inputs
-    values = base.copy()
-    if len(ramp_rows) > RAMPS_AT_ONCE:
-        values[ramp_rows] = Ramp.at(ramp_table, t)  # (finite: their numbers were checked when made)
-    elif len(ramp_rows):
-        values[ramp_rows] = [ramp(t) for ramp in ramp_calls]  # (the same numbers)
-    if not calls:
-        return values
-    try:
-        values[place] = [float(f(t)) for f in calls]
-        if np.isfinite(values[place]).all():
-            return values
-    except Exception:  # (input_at below says what and whose)
-        pass
-    values[place] = [a.input_at(t) for a in schedules]  # the slow way, which names the actuator at fault
-    return values
-
-
 def resolve_on_device(sim: Simulator) -> None:
     """Direct-model worlds: projected Gauss-Seidel on the device, every world at once; then the
     inverse-model worlds' QP when it runs on the device (each leaves the other's multipliers
@@ -509,67 +425,6 @@ def resolve_on_device(sim: Simulator) -> None:
             sim.gauss_seidel.solve(rows.W, rows.delta_free, start)
     if sim.device_inverse is not None:
         sim.device_inverse.solve(rows.W, rows.delta_free, start, sim.gauss_seidel.inputs, sim.gauss_seidel.lam)
-
-
-def resolve_on_host(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
-    """Between the two graphs, from one read (``host``): the direct-model worlds' Gauss-Seidel
-    when it runs on the host, then the inverse-model worlds' QPs; the multipliers go back in one
-    copy."""
-    if sim.host_gauss_seidel and sim.contact_set is not None:  # (no inverse world then)
-        sim.contact_set.resolve_columns(host)
-    elif sim.host_gauss_seidel:
-        sim.gauss_seidel.solve_host(host)
-    if any(s.inverse for s in sim.model.scenes) and sim.device_inverse is None:
-        resolve_inverse(sim, stats, host)
-    else:
-        sim.gauss_seidel.lam.assign(host["lam"])
-
-
-def resolve_inverse(sim: Simulator, stats: StepStats, host: dict[str, np.ndarray]) -> None:
-    """Inverse-model worlds: a QP each on the host (a QPCC where contacts were detected), from
-    ``W``, ``delta_free``, ``delta`` and ``lambda`` read in one transfer (``host``); the
-    multipliers go back in one copy."""
-    rows, gs, scenes = sim.rows, sim.gauss_seidel, sim.model.scenes
-    W, dfree, delta, lam = host["W"], host["delta_free"], host["delta"], host["lam"]
-    for w, scene in enumerate(scenes):
-        if not (scene.inverse and rows.world_actuators[w]):
-            continue
-        a, e = rows.actuator_rows(w), rows.effector_rows(w)
-        na = a.stop - a.start
-        inputs = row_inputs(gs.host, sim.values, delta, a)
-        b = np.arange(rows.bilateral_rows(w).start, rows.bilateral_rows(w).stop)  # attachments, always held
-        touching = int(host["force_rows"][w]) - na - len(b)  # the contacts detected this step
-        if touching > 0 or len(b):  # a QPCC: the attachments' and contacts' forces with the actuation
-            c = np.arange(rows.contact_rows(w).start, rows.contact_rows(w).start + touching)
-            ids = np.concatenate([np.arange(a.start, a.stop), b, c, np.arange(e.start, e.stop)])
-            nf = na + len(b) + touching
-            local = (np.arange(na), na + np.arange(len(b)), na + len(b) + np.arange(touching),
-                     nf + np.arange(e.stop - e.start))
-            if rows.rows_per_contact(w) > 1:  # with friction: the direct model's contact states
-                qp = FrictionQP(W[ids, :nf], dfree[ids], *local, inputs, sim.effector_weights[w],
-                                host["friction"][c[1::3]], scene.inverse_epsilon)
-
-                def physics(lam_a, w=w, a=a, b=b, c=c):
-                    lam_w = gs.contacts_at(host, w, a, lam_a)
-                    return lam_w[b], lam_w[c]
-
-                res = solve_inverse_friction(qp, lam[a], physics)
-            else:
-                qp = ContactQP(W[ids, :nf], dfree[ids], local[0], local[2], local[3], inputs,
-                               sim.effector_weights[w], scene.inverse_epsilon, b=local[1])
-                res = solve_inverse_contacts(qp, lam[a])
-            lam[a], lam[c] = res.lam_a, res.lam_c
-            if res.lam_b is not None:
-                lam[b] = res.lam_b
-            stats.worlds[w].qp_pivots = res.pivots
-        else:
-            res = solve_inverse(W[a, :na], W[e, :na], dfree[a], dfree[e], inputs, sim.effector_weights[w], lam[a],
-                                scene.inverse_epsilon)
-            lam[a] = res.lam
-        stats.worlds[w].qp_status, stats.worlds[w].qp_seconds = res.status, res.seconds
-        if res.warning:
-            stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: {res.warning}")
-    gs.lam.assign(lam)
 
 
 def record_newton(sim: Simulator, stats: StepStats) -> None:
@@ -597,15 +452,6 @@ def record_device_qp(sim: Simulator, stats: StepStats, host: dict[str, np.ndarra
         ws.qp_status, ws.qp_seconds, ws.resolve_iterations = status, 0.0, sim.device_inverse.iterations(host["qp"], w)
         if warning:
             stats.warnings.append(f"step {stats.index}{sim.world_label(w)}: inverse model: {warning}")
-
-
-def row_inputs(host: np.ndarray, values: np.ndarray, delta: np.ndarray, a: slice) -> RowInputs:
-    """The inputs of actuator rows ``a`` for the host solvers, displacement bounds narrowed to the
-    change allowed this step (as the device Gauss-Seidel does)."""
-    k = gs_kernels
-    lo_step, hi_step = delta[a] - host[k.MAX_STEP, a], delta[a] + host[k.MAX_STEP, a]
-    return RowInputs(force_mode=host[k.FORCE_MODE, a] != 0, value=values[a], lo=host[k.LO, a], hi=host[k.HI, a],
-                     dmin=np.clip(host[k.DMIN, a], lo_step, hi_step), dmax=np.clip(host[k.DMAX, a], lo_step, hi_step))
 
 
 @contextmanager
