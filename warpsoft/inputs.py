@@ -38,11 +38,14 @@ def actuator_values(sim: Simulator, t: float, controls: list[Control | None]) ->
     """The input of every actuator row at time ``t`` (``(rows,)``): a Control's value, else the
     actuator's own (a number, or a schedule called once here: :func:`own_inputs`)."""
     rows, values = sim.rows, own_inputs(sim, t)
-    for w, (acts, start, control) in enumerate(zip(rows.actuators, rows.world_row_start.tolist(), controls,
-                                                   strict=False)):
+    if controls.count(None) == len(controls):  # (a batch's usual step: no world's inputs overridden, no loop
+        return values  # over the worlds: 1024 coarse Diamonds on the VM, host_inputs 84 -> 38-39 us)
+    starts = rows.world_row_start.tolist()
+    for w, control in enumerate(controls):
         given = control.inputs if control is not None else None
         if not given:
             continue
+        acts, start = rows.actuators[w], starts[w]
         unknown = set(given) - {a.name for a in acts}
         if unknown:
             raise SceneError(f"control{sim.world_label(w)}: no actuator named {', '.join(sorted(unknown))}")
