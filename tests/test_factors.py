@@ -462,7 +462,7 @@ def test_a_block_analysed_ahead_refactorizes_as_one_analysed_at_its_first():
     info = pre.refactorizer.blocks[b]
     e0, e1 = int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])
     blocks = wp.zeros(16 * (e1 - e0), dtype=wp.mat33d, device=m.device)
-    pre.op.elastic.blocks(pre.op.rot, blocks, (e0, e1))  # the world's state three steps on
+    pre.op.elastic.blocks(pre.op.rot, blocks, [(e0, e1)])  # the world's state three steps on
     place = info.elements[0] - info.ready  # (this block alone, at the start of a fresh arena)
     end = max(o + 4 * n for o, n in info.values) - info.ready
     local = refactor.Block(info.pattern, info.order, info.masses, 0, (place, info.elements[1]),

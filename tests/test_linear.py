@@ -82,6 +82,33 @@ def three_elements(stiffness: float = 1.0, static: bool = False) -> ws.Scene:
     return scene
 
 
+@pytest.mark.parametrize("element", ["corotational", "quadratic", "neohookean"])
+def test_the_blocks_of_ranges_of_elements_are_those_of_every_element(element):
+    """Each element model's stiffness blocks of some ranges of elements (parts of two worlds, the
+    later one first), made in one launch, are those the whole model's launch makes for the same
+    elements, bit for bit, at a sagged state."""
+    scenes = []
+    for stiffness in (1.0, 3.0):
+        scene = ws.Scene("beam", gravity=(0.0, 0.0, -9.81), dt=0.01)
+        body = scene.add_body(element, ws.box_grid((0.0, 0.0, 0.0), (0.08, 0.01, 0.01), (8, 1, 1)),
+                              ws.Material(stiffness * 1e5, 0.45, 1000.0), element=element)
+        scene.fix(body, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9))
+        scenes.append(scene)
+    sim = ws.Simulator(scenes, solver="direct")
+    for _ in range(3):
+        sim.step()
+    elastic, group = sim.elastic, sim.elastic.groups[0].group
+    per = elastic.groups[0].nodes_per_element ** 2  # blocks an element
+    full = wp.zeros(per * group.count, dtype=wp.mat33d)
+    elastic.blocks(sim.rot, full)
+    start = np.searchsorted(group.world.numpy(), [0, 1, 2])  # each world's first element of the group
+    ranges = [(int(start[1]) + 2, int(start[2])), (int(start[0]), int(start[0]) + 5)]
+    some = wp.zeros(per * sum(hi - lo for lo, hi in ranges), dtype=wp.mat33d)
+    elastic.blocks(sim.rot, some, ranges)
+    want = np.concatenate([full.numpy()[per * lo:per * hi] for lo, hi in ranges])
+    assert np.abs(want).max() > 0 and np.array_equal(some.numpy(), want)
+
+
 @pytest.mark.parametrize("static", [False, True])
 def test_the_assembled_operator_applies_every_element_model_as_the_matrix_free_one(static):
     """The 3x3 node blocks gathered from the element models' blocks (linear and 10-node tets,

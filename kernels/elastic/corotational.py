@@ -16,7 +16,7 @@ import warp as wp
 
 from ..linear.cg import column_done
 from ..worlds import still
-from .geometry import edge_matrix, polar_rotation, shape_gradient
+from .geometry import edge_matrix, listed, polar_rotation, shape_gradient
 
 
 @wp.func
@@ -224,12 +224,15 @@ def stiffness_blocks(
     mu: wp.array(dtype=wp.float64),
     lam: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
+    elements: wp.array(dtype=wp.int32),
     blocks: wp.array(dtype=wp.mat33d),
 ):
     """All sixteen rotated 3x3 blocks of each element's stiffness, for sparse assembly
     (direct solver only): ``blocks[16 e + 4 a + b] = V R K0_ab R^T = V K0(R g_a, R g_b)`` (N/m);
-    ``K_ba = K_ab^T``."""
-    e = wp.tid()
+    ``K_ba = K_ab^T``. With ``elements`` (not empty), thread ``i`` takes element ``elements[i]``
+    and writes its blocks at ``16 i``."""
+    i = wp.tid()
+    e = listed(elements, i)
     Di = dm_inv[e]
     R = rot[e]
     V = volume[e]
@@ -237,9 +240,9 @@ def stiffness_blocks(
         ga = R * shape_gradient(Di, a)
         for b in range(a, 4):
             Kab = V * stiffness_block(ga, R * shape_gradient(Di, b), mu[e], lam[e])
-            blocks[16 * e + 4 * a + b] = Kab
+            blocks[16 * i + 4 * a + b] = Kab
             if b != a:
-                blocks[16 * e + 4 * b + a] = wp.transpose(Kab)
+                blocks[16 * i + 4 * b + a] = wp.transpose(Kab)
 
 
 @wp.kernel

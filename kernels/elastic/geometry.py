@@ -5,6 +5,15 @@ import warp as wp
 
 
 @wp.func
+def listed(elements: wp.array(dtype=wp.int32), i: int) -> int:
+    """The element a thread ``i`` of a launch over ``elements`` takes (``elements[i]``), or ``i``
+    itself when ``elements`` is empty (a launch over every element)."""
+    if elements.shape[0] == 0:
+        return i
+    return elements[i]
+
+
+@wp.func
 def shape_gradient(dm_inv: wp.mat33d, a: int) -> wp.vec3d:
     """Gradient (m^-1) of node ``a``'s linear shape function in the rest configuration."""
     g1 = wp.vec3d(dm_inv[0, 0], dm_inv[0, 1], dm_inv[0, 2])

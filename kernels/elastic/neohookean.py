@@ -34,7 +34,7 @@ import warp as wp
 
 from ..linear.cg import column_done
 from ..worlds import still
-from .geometry import edge_matrix, shape_gradient
+from .geometry import edge_matrix, listed, shape_gradient
 
 
 @wp.struct
@@ -279,12 +279,15 @@ def stiffness_blocks(
     dm_inv: wp.array(dtype=wp.mat33d),
     volume: wp.array(dtype=wp.float64),
     tangent: wp.array(dtype=Tangent),
+    elements: wp.array(dtype=wp.int32),
     blocks: wp.array(dtype=wp.mat33d),
 ):
     """All sixteen 3x3 blocks of each element's tangent stiffness, for sparse assembly:
     ``blocks[16 e + 4 a + b] = K_ab`` (N/m). Each node's three unit motions give the stress
-    changes that make the blocks of its column (12 tangent products an element)."""
-    e = wp.tid()
+    changes that make the blocks of its column (12 tangent products an element). With
+    ``elements`` (not empty), thread ``i`` takes element ``elements[i]`` and writes at ``16 i``."""
+    i = wp.tid()
+    e = listed(elements, i)
     Di = dm_inv[e]
     T = tangent[e]
     V = volume[e]
@@ -294,7 +297,7 @@ def stiffness_blocks(
         P1 = V * unit_motion_stress(T, gb, 1)
         P2 = V * unit_motion_stress(T, gb, 2)
         for a in range(4):
-            blocks[16 * e + 4 * a + b] = node_block(P0, P1, P2, shape_gradient(Di, a))
+            blocks[16 * i + 4 * a + b] = node_block(P0, P1, P2, shape_gradient(Di, a))
 
 
 @wp.kernel

@@ -20,7 +20,7 @@ import warp as wp
 from ..linear.cg import column_done
 from ..worlds import still
 from .corotational import hooke, stiffness_block
-from .geometry import polar_rotation, shape_gradient
+from .geometry import listed, polar_rotation, shape_gradient
 
 # loops stay loops: unrolled, the nested loops over ten nodes and four points took minutes to compile
 wp.set_module_options({"max_unroll": 0})
@@ -266,11 +266,14 @@ def stiffness_blocks(
     mu: wp.array(dtype=wp.float64),
     lam: wp.array(dtype=wp.float64),
     rot: wp.array(dtype=wp.mat33d),
+    elements: wp.array(dtype=wp.int32),
     blocks: wp.array(dtype=wp.mat33d),
 ):
     """All hundred rotated 3x3 blocks of each element's stiffness, for sparse assembly:
-    ``blocks[100 e + 10 a + b] = sum_q (V/4) K0(R grad N_a(q), R grad N_b(q))`` (N/m)."""
-    e = wp.tid()
+    ``blocks[100 e + 10 a + b] = sum_q (V/4) K0(R grad N_a(q), R grad N_b(q))`` (N/m). With
+    ``elements`` (not empty), thread ``i`` takes element ``elements[i]`` and writes at ``100 i``."""
+    i = wp.tid()
+    e = listed(elements, i)
     Di = dm_inv[e]
     g0, g1, g2, g3 = corner_gradients(Di)
     R = rot[e]
@@ -281,9 +284,9 @@ def stiffness_blocks(
             for q in range(4):
                 Kab += stiffness_block(rotated_gradient(R, g0, g1, g2, g3, a, q),
                                        rotated_gradient(R, g0, g1, g2, g3, b, q), mu[e], lam[e])
-            blocks[100 * e + 10 * a + b] = w * Kab
+            blocks[100 * i + 10 * a + b] = w * Kab
             if b != a:
-                blocks[100 * e + 10 * b + a] = w * wp.transpose(Kab)
+                blocks[100 * i + 10 * b + a] = w * wp.transpose(Kab)
 
 
 @wp.kernel

@@ -80,14 +80,15 @@ class Corotational:
         launch(self.kernels.stiffness_diagonal, g.count, inputs=[g.elems, *self._tangent(rot)], outputs=[diag],
                device=m.device)
 
-    def blocks(self, rot: wp.array, blocks: wp.array, elements: tuple[int, int] | None = None) -> None:
+    def blocks(self, rot: wp.array, blocks: wp.array, elements: wp.array | None = None) -> None:
         """The ``k^2`` 3x3 blocks (N/m) of each element's ``K`` (``k`` nodes an element),
         ``(k^2 count,)`` mat33d, block ``k a + b`` of element ``e`` at ``k^2 e + k a + b``;
-        with ``elements`` ``(lo, hi)``, those of the group's elements ``lo:hi`` alone, element
-        ``lo + e`` at ``k^2 e + k a + b`` (``blocks`` ``(k^2 (hi - lo),)``)."""
-        lo, hi = (0, self.group.count) if elements is None else elements
-        inputs = self._tangent(rot) if elements is None else [a[lo:hi] for a in self._tangent(rot)]
-        launch(self.kernels.stiffness_blocks, hi - lo, inputs=inputs, outputs=[blocks], device=self.model.device)
+        with ``elements`` (``(m,)`` int32 on the device, the group's elements), those alone, in
+        one launch: the ``i``-th's block ``k a + b`` at ``k^2 i + k a + b`` (``blocks``
+        ``(k^2 m,)``)."""
+        count = self.group.count if elements is None else elements.shape[0]
+        launch(self.kernels.stiffness_blocks, count, inputs=[*self._tangent(rot), elements], outputs=[blocks],
+               device=self.model.device)
 
     def gather_blocks(self, rot: wp.array, slot_start: wp.array, contributions: wp.array, values: wp.array,
                       moving: wp.array | None = None) -> bool:

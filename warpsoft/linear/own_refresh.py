@@ -88,10 +88,7 @@ class OwnRefreshes:
             worlds = [int(self.first_world[b]) for b in due]
             ranges = [(int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])) for w in worlds]
             blocks = wp.empty(sum(16 * (e1 - e0) for e0, e1 in ranges), dtype=wp.mat33d, device=d)
-            at = 0
-            for e0, e1 in ranges:
-                self.op.elastic.blocks(self.op.rot, blocks[at:at + 16 * (e1 - e0)], (e0, e1))
-                at += 16 * (e1 - e0)
+            self.op.elastic.blocks(self.op.rot, blocks, ranges)
             spans = [(int(m.world_node_start[w]), int(m.world_node_start[w + 1])) for w in worlds]
             if self._frames is None:
                 self._frames = wp.empty_like(self.node_rot)
