@@ -74,10 +74,10 @@ class Elements:
             if len(self.groups) != 1:
                 raise ValueError(f"Elements: the blocks of ranges of elements need one element group, got "
                                  f"{self.kinds}")
-            listed = np.concatenate([np.arange(lo, hi, dtype=np.int32) for lo, hi in ranges] or
-                                    [np.zeros(0, dtype=np.int32)])
-            if len(listed):
-                self.groups[0].blocks(rot, blocks, wp.array(listed, dtype=wp.int32, device=rot.device))
+            listed = [np.arange(lo, hi, dtype=np.int32) for lo, hi in ranges if hi > lo]
+            if listed:  # (an empty list of elements would mean every element to the kernel)
+                self.groups[0].blocks(rot, blocks, wp.array(np.concatenate(listed), dtype=wp.int32,
+                                                            device=rot.device))
             return
         for g, r, b in self._parts(rot, "blocks", blocks):
             g.blocks(r, b)
