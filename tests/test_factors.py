@@ -1,6 +1,8 @@
 """The warped preconditioner world by world with sparse factors (``preconditioner="factors"``):
 CHOLMOD's factor of each world, its triangular solves run as levels on the device."""
 
+import contextlib
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -541,3 +543,36 @@ def test_worlds_refactorized_alone_step_as_alone(monkeypatch):
     pre = sim.solver.precond
     assert pre.blocks == 3 and pre.refreshes == 1 and pre.world_refreshes > 0
     steps_as_alone(scenes, sim, together, "factors", 1)
+
+
+def test_pages_locked_by_a_refactorizer_shut_down_in_a_capture_are_unlocked_after_it(monkeypatch):
+    """A refactorizer shut down while its device captures a graph (the garbage collector may end one
+    inside another simulator's capture: on the H200, the driver's unlock there broke that capture)
+    leaves its pages locked, its arenas kept, and calls no driver; the next shut-down outside a
+    capture unlocks those pages and its own, each on its device."""
+    import mmap
+
+    from warpsoft.linear import refactor
+
+    calls = []
+
+    class Driver:
+        def cuMemHostUnregister(self, address):  # noqa: N802  (the driver's name)
+            calls.append(address.value)
+
+    class Device:  # (a CUDA device as the unlock sees it)
+        def __init__(self, capturing):
+            self.is_capturing = capturing
+
+    monkeypatch.setattr(refactor, "_UNLOCK_LATER", [])
+    monkeypatch.setattr(refactor.ctypes, "CDLL", lambda name: Driver())
+    monkeypatch.setattr(refactor.wp, "ScopedDevice", lambda device: contextlib.nullcontext())
+    capturing, arenas = Device(True), [mmap.mmap(-1, 4096)]
+    locked = [4096, 8192]
+    refactor._shut_down([], locked, capturing, arenas)
+    assert calls == [] and locked == [] and refactor._UNLOCK_LATER == [(capturing, [4096, 8192], arenas)]
+    refactor._shut_down([], [12288], Device(False), [])  # (a second device's, outside a capture)
+    assert calls == [12288] and len(refactor._UNLOCK_LATER) == 1  # (the first device still captures)
+    capturing.is_capturing = False
+    refactor._shut_down([], [16384], capturing, [])
+    assert calls == [12288, 4096, 8192, 16384] and refactor._UNLOCK_LATER == []

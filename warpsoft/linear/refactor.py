@@ -62,6 +62,9 @@ _WORKER_LIMITS = []  # a worker's BLAS thread limit, held for its life
 # how long a worker waits for a job's element blocks to land once told of it (s): the copy is
 # already queued then, behind at most the boundary's few launches
 READY_TIMEOUT = 120.0
+# pages left locked by refactorizers shut down while their device captured a graph: ``(device,
+# addresses, arenas)``, unlocked at the next chance outside a capture (the arenas kept mapped till then)
+_UNLOCK_LATER: list[tuple] = []
 
 
 def lower_system(pattern: Pattern, entries: np.ndarray, masses: np.ndarray | None) -> np.ndarray:
@@ -435,6 +438,7 @@ def _page_lock(device, arenas: list) -> list[int]:
         driver = ctypes.CDLL("libcuda.so.1")
     except OSError:
         return []
+    _unlock(device, [], [])  # (what earlier refactorizers left locked)
     locked = []
     with wp.ScopedDevice(device):  # (its context current for the driver's call)
         for arena in arenas:
@@ -460,11 +464,28 @@ def _shut_down(procs: list, locked: list[int], device, arenas: list) -> None:
         conn.close()
     procs.clear()
     if locked:
-        try:
-            driver = ctypes.CDLL("libcuda.so.1")
-            with wp.ScopedDevice(device):
+        _unlock(device, list(locked), arenas)
+        locked.clear()
+
+
+def _unlock(device, addresses: list[int], arenas: list) -> None:
+    """Unlock the pages at ``addresses`` (``cuMemHostUnregister``), and those left locked before;
+    while ``device`` captures a graph, keep them all for later instead: the driver's call would end
+    the capture in error (a refactorizer is often shut down by the garbage collector, at any point of
+    another simulator's capture)."""
+    if addresses:
+        _UNLOCK_LATER.append((device, addresses, arenas))
+    if getattr(device, "is_capturing", False):
+        return
+    due, kept = [], []
+    for entry in _UNLOCK_LATER:  # (another device may be capturing)
+        (kept if getattr(entry[0], "is_capturing", False) else due).append(entry)
+    _UNLOCK_LATER[:] = kept
+    try:
+        driver = ctypes.CDLL("libcuda.so.1")
+        for where, locked, _ in due:
+            with wp.ScopedDevice(where):
                 for address in locked:
                     driver.cuMemHostUnregister(ctypes.c_void_p(address))
-        except Exception:  # (at interpreter exit the driver may be gone: the process's end frees them)
-            pass
-        locked.clear()
+    except Exception:  # (at interpreter exit the driver may be gone: the process's end frees them)
+        pass
