@@ -3,7 +3,8 @@ against the batch size, and a batch against the same designs stepped one at a ti
 
     python tools/batch_bench.py --device cuda [--sizes 1 16 64 256] [--steps 20] [--alone 16]
 
-The designs are Diamonds driven directly by their four cables (a step input held), each its own
+The designs are Diamonds driven directly by their four cables (a step input held; ``--mode inverse``:
+each following the scene's effector circle, its cables found by a QP every step), each its own
 leg radius (``--meshes`` different meshes, cycled) and Young's modulus (log-spaced over 0.1-0.3
 MPa). Per batch size: the model's DOFs, the step's median (ms) after ``--warmup`` steps, and the
 design-steps per second (designs / step time), and over the whole run (designs / the timed steps'
@@ -25,6 +26,11 @@ from pathlib import Path
 
 import numpy as np
 import warp as wp
+
+try:
+    import resource  # (Unix)
+except ImportError:
+    resource = None
 
 import warpsoft as ws
 from warpsoft.io.runner import build_scene
@@ -48,12 +54,14 @@ def leg_radii(meshes: int) -> list[float]:
     return [round(float(r), 7) for r in np.linspace(LEG_RADII[0], LEG_RADII[-1], meshes)]
 
 
-def designs(count: int, meshes: int) -> list[dict]:
-    """``count`` Diamond designs: leg radius cycling over ``meshes`` values, modulus log-spaced."""
+def designs(count: int, meshes: int, mode: str = "direct") -> list[dict]:
+    """``count`` Diamond designs: leg radius cycling over ``meshes`` values, modulus log-spaced.
+    ``mode="direct"``: two cables shortened (4 and 2 mm over 50 ms) and held; ``"inverse"``: the
+    scene's own effector circle, each world's cables found by its QP every step."""
     moduli = np.geomspace(1e5, 3e5, count)
     radii = leg_radii(meshes)
-    return [{"leg_radius": radii[k % meshes], "young_modulus": float(moduli[k]),
-             "cable_displacements": (0.004, 0.0, 0.002, 0.0), "ramp_time": 0.05} for k in range(count)]
+    drive = {"cable_displacements": (0.004, 0.0, 0.002, 0.0), "ramp_time": 0.05} if mode == "direct" else {"mode": mode}
+    return [{"leg_radius": radii[k % meshes], "young_modulus": float(moduli[k]), **drive} for k in range(count)]
 
 
 def _job_times(info: dict) -> str:
@@ -65,6 +73,13 @@ def _job_times(info: dict) -> str:
     return f"; a job {median:.1f} ms (p90 {p90:.1f}, most {most:.1f}), its blocks landed within {landed:.1f} ms"
 
 
+def _switches() -> int:
+    """The calling thread's involuntary context switches so far (another process took its core; 0
+    where the platform does not count them per thread)."""
+    who = getattr(resource, "RUSAGE_THREAD", None)  # (Linux)
+    return resource.getrusage(who).ru_nivcsw if who is not None else 0
+
+
 def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: bool = False,
                 **options) -> tuple[float, int, dict]:
     """Median step time (s) of ``scenes`` as one model, its DOFs, and what the solve did: the CG
@@ -72,7 +87,8 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
     preconditioner's distinct blocks and device memory when it keeps them per world; with
     ``kernels`` (CUDA), one more step uncaptured, each kernel and copy timed (``info["kernels"]``);
     and each timed step's time, its graphs' and its CG iterations (the host's share is the first
-    less the second)."""
+    less the second); and the stepping thread's CPU time and involuntary context switches (Linux),
+    a step's mean: a host whose cores other processes share shows it there."""
     t0 = time.perf_counter()
     sim = ws.Simulator(ws.finalize(scenes, device), device=device, **options)
     for _ in range(warmup):
@@ -84,6 +100,7 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
     setup = time.perf_counter() - t0
     times, its, world_its, graphs, refresh = [], [], [], [], []
     refreshed = getattr(pre, "world_refreshes", 0)
+    cpu0, switched0 = time.thread_time(), _switches()
     for _ in range(steps):
         t0 = time.perf_counter()
         stats = sim.step()
@@ -93,6 +110,8 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
         world_its.append(np.mean([w.cg_iterations for w in stats.worlds]))
         refresh.append(stats.stages.get("refresh_worlds", 0.0))
     refreshed = getattr(pre, "world_refreshes", 0) - refreshed  # (the timed steps')
+    thread = {"thread_cpu_ms": 1e3 * (time.thread_time() - cpu0) / steps,
+              "involuntary_switches": (_switches() - switched0) / steps}
     waited = {"refactor_waited_s": refactor.waited, "refactor_submitted": refactor.submitted,
               "refactor_page_locked": refactor.page_locked, "refactor_settle_s": settled} if refactor else {}
     if refactor is not None and len(refactor.working) > answered:  # the timed steps' jobs, in the workers
@@ -114,7 +133,7 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
         parts["graph_ms"] = 1e3 * float(np.median(graphs))
     info = {**parts, "step_times_ms": [1e3 * t for t in times], "graph_times_ms": [1e3 * t for t in graphs],
             "step_cg_iterations": its, "step_mean_ms": 1e3 * float(np.mean(times)),
-            "world_refreshes": refreshed, "refresh_ms": 1e3 * float(np.mean(refresh)), **waited,
+            "world_refreshes": refreshed, "refresh_ms": 1e3 * float(np.mean(refresh)), **waited, **thread,
             "cg_iterations": float(np.median(its)), "world_cg_iterations": float(np.median(world_its)),
             "setup_s": setup, "preconditioner": type(pre).__name__,
             "blocks": getattr(pre, "blocks", None), "precond_mb": getattr(pre, "memory_bytes", 0) / 1e6}
@@ -163,6 +182,8 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=1,
                     help="processes that mesh the designs first into WARPSOFT_MESH_CACHE (set it)")
     ap.add_argument("--alone", type=int, default=0, help="also step the first K designs one at a time")
+    ap.add_argument("--mode", default="direct", choices=["direct", "inverse"],
+                    help="the Diamonds' model: cables driven, or the effector's circle followed (a QP a world)")
     ap.add_argument("--solver", default="auto")
     ap.add_argument("--preconditioner", default="auto", help="pcg's: auto, blocks, factors, dense, host")
     ap.add_argument("--share-tolerance", type=float, default=1e-10,
@@ -217,14 +238,16 @@ def main(argv=None) -> int:
         wide = None if args.wide == "none" else args.wide.split(",")
         factors.WIDE_FROM = None if wide is None else float(wide[0])
         factors.WIDE_LANES = factors.WIDE_LANES if wide is None else int(wide[1])
-    everything = designs(max(args.sizes + [args.alone]), args.meshes)
+    everything = designs(max(args.sizes + [args.alone]), args.meshes, args.mode)
     if args.workers > 1 and not os.environ.get("WARPSOFT_MESH_CACHE"):
         ap.error("--workers meshes ahead into the mesh cache: set WARPSOFT_MESH_CACHE to a folder")
     t0 = time.perf_counter()
     premesh(ROOT / "scenes/diamond.py", everything, args.workers)
     scenes = [build_scene(ROOT / "scenes/diamond.py", d) for d in everything]
     print(f"{len(scenes)} designs built in {time.perf_counter() - t0:.1f} s", flush=True)
-    rows = []
+    rows, alone = [], None
+    out = Path(args.out)
+    meta = {"date": date.today().isoformat(), "device": args.device, "mode": args.mode, "command": " ".join(sys.argv)}
     options = {"solver": args.solver, "preconditioner": args.preconditioner, "share_tolerance": args.share_tolerance,
                "precision": args.precision, "tolerance": args.tolerance, "operator": args.operator,
                "warm_start": args.warm_start}
@@ -246,10 +269,11 @@ def main(argv=None) -> int:
               f"graphs {info.get('graph_ms', 0):.2f} ms  mean step {info['step_mean_ms']:.2f} ms "
               f"({1e3 * n / info['step_mean_ms']:.1f} design-steps/s over the run)  "
               f"world refreshes {info['world_refreshes']} ({info['refresh_ms']:.2f} ms a step, "
-              f"waited {info.get('refactor_waited_s', 0):.2f} s in all"
+              f"waited {info.get('refactor_waited_s', 0):.2f} s in all; the stepping thread's CPU "
+              f"{info['thread_cpu_ms']:.2f} ms and {info['involuntary_switches']:.1f} switches a step"
               f"{_job_times(info)}"
               f"{', page-locked' if info.get('refactor_page_locked') else ''})", flush=True)
-    alone = None
+        _write(out, meta, rows, alone)  # (each batch size kept as it is measured: a later one may fail)
     if args.alone:
         k = args.alone
         one = [step_median([s], args.device, args.steps, args.warmup, **options)[0] for s in scenes[:k]]
@@ -258,23 +282,28 @@ def main(argv=None) -> int:
                  "ratio": sum(one) / together}
         print(f"{k} designs: one at a time {1e3 * sum(one):.2f} ms per step of all, batched {1e3 * together:.2f} ms: "
               f"{sum(one) / together:.1f}x", flush=True)
-    out = Path(args.out)
+    _write(out, meta, rows, alone)
+    if args.kernels:
+        (out / "kernels.md").write_text(kernels_markdown(rows))
+    return 0
+
+
+def _write(out: Path, meta: dict, rows: list[dict], alone: dict | None) -> None:
+    """batch.json (everything measured) and batch.md (the table) in ``out``."""
     out.mkdir(parents=True, exist_ok=True)
-    meta = {"date": date.today().isoformat(), "device": args.device, "command": " ".join(sys.argv)}
     (out / "batch.json").write_text(json.dumps({"meta": meta, "rows": rows, "alone": alone}, indent=1))
-    lines = [f"{meta['date']}, device {args.device}: `{meta['command']}`", "",
-             "| designs | DOFs | step median (ms) | design-steps / s | CG iterations | preconditioner | blocks | MB |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [f"{meta['date']}, device {meta['device']}, {meta['mode']} model: `{meta['command']}`", "",
+             "| designs | DOFs | step median (ms) | design-steps / s | over the run | CG iterations | preconditioner "
+             "| blocks | MB |",
+             "|---|---|---|---|---|---|---|---|---|"]
     lines += [f"| {r['designs']} | {r['dofs']} | {r['step_ms']:.2f} | {r['design_steps_per_s']:.1f} | "
+              f"{r['run_design_steps_per_s']:.1f} | "
               f"{r['cg_iterations']:.0f} | {r['preconditioner']} | {r['blocks']} | {r['precond_mb']:.0f} |"
               for r in rows]
     if alone:
         lines += ["", f"{alone['designs']} designs one at a time: {alone['one_at_a_time_ms']:.2f} ms per step of "
                   f"all; batched: {alone['batched_ms']:.2f} ms; ratio {alone['ratio']:.1f}"]
     (out / "batch.md").write_text("\n".join(lines) + "\n")
-    if args.kernels:
-        (out / "kernels.md").write_text(kernels_markdown(rows))
-    return 0
 
 
 def kernels_markdown(rows: list[dict]) -> str:
