@@ -354,6 +354,39 @@ def test_a_world_whose_cg_grew_is_refactorized_alone():
     assert pre.refresh_worlds() == 0  # done: nothing due until its count grows again
 
 
+def test_a_world_alone_in_its_block_leaves_the_whole_model_to_the_worlds_that_share_one():
+    """With the worlds' own refreshes on, a world alone in its block whose CG grew past the whole
+    model's rule is left to its own refresh: nothing marks every block stale (with 1024 Diamonds
+    that one step took 30 s). A world that shares a block still does, by the same rule (past
+    ``refresh_ratio`` times the shared worlds' first count and ``refresh_floor``). With them off,
+    a solve's count (its slowest world's) does, as in :class:`WarpedFactor`."""
+    sim = ws.Simulator(ws.finalize(four_designs()), solver="direct")
+    sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # linearized at rest
+    pre = WorldFactors(sim.operator, 3, "float64")  # worlds 0 and 1 proportional there: one block
+    pre.prepare()
+    assert list(pre.block_of) == [0, 0, 1, 2] and pre.refreshes_alone
+    assert (pre.refresh_ratio, pre.refresh_floor) == (2.0, 40)
+    pre.observe(6)
+    pre.observe_worlds(np.array([6, 6, 6, 6]))
+    pre.observe(100)  # world 3's count, alone in its block
+    pre.observe_worlds(np.array([6, 6, 6, 100]))
+    assert not pre.stale and pre.worlds_due  # its own refresh, not the whole model's
+    pre.observe(40)
+    pre.observe_worlds(np.array([6, 40, 6, 6]))  # world 1 shares block 0: not past the floor
+    assert not pre.stale
+    pre.observe(41)
+    pre.observe_worlds(np.array([6, 41, 6, 6]))
+    assert pre.stale
+    pre.prepare()
+    assert pre.refreshes == 2 and not pre.stale
+    pre.world_floor = None  # no own refreshes: the slowest world's count, whichever world
+    assert not pre.refreshes_alone
+    pre.observe(6)
+    pre.observe_worlds(np.array([6, 6, 6, 6]))
+    pre.observe(41)
+    assert pre.stale
+
+
 def factorized_then_stepped(steps: int, **settings) -> tuple:
     """The four designs after a step, their factors made there (float64, one block a world) with
     ``settings`` (attributes of the factors), then ``steps`` steps on, the node rotations taken
