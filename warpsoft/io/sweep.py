@@ -40,6 +40,7 @@ import numpy as np
 
 from ..errors import SceneError, SimulationError, WarpsoftError
 from ..model import finalize
+from ..processes import bind_to_parent
 from ..simulator import Simulator
 from .runner import build_scene, load_scene_module, parse_value
 
@@ -166,7 +167,8 @@ def premesh(scene_file: str | Path, designs: Sequence[dict], workers: int) -> No
     that the sweep's own builds read their meshes from the cache. Nothing to do for one worker."""
     if workers <= 1 or len(designs) <= 1:
         return
-    with ProcessPoolExecutor(max_workers=min(workers, len(designs)), mp_context=get_context("spawn")) as pool:
+    with ProcessPoolExecutor(max_workers=min(workers, len(designs)), mp_context=get_context("spawn"),
+                             initializer=bind_to_parent, initargs=(os.getpid(),)) as pool:
         list(pool.map(_build_for_cache, [str(scene_file)] * len(designs), designs))
 
 

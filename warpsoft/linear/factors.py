@@ -44,6 +44,7 @@ from warpsoft.kernels.linear import factors as kernels
 
 from ..errors import SceneError
 from ..launch import launch
+from ..processes import bind_to_parent
 from .assembly import ORDERINGS, CholmodFactor, Pattern, Sparsity
 from .blocks import WorldGroups, _dense_entries
 from .operator import SystemOperator
@@ -299,7 +300,8 @@ class WorldFactors(OwnRefreshes, WorldGroups):
                 # forked (Linux): the workers run CHOLMOD, METIS and numpy on what they are sent, never
                 # Warp or CUDA. A spawned one would first run the user's script again, up to here,
                 # wherever it lacks the `if __name__ == "__main__"` guard
-                with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+                with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
+                                         initializer=bind_to_parent, initargs=(os.getpid(),)) as pool:
                     futures = [pool.submit(factor_programs, *job) for job in jobs]
                     self._take(m, first, [(w, f.result) for w, f in zip(self.first_world, futures, strict=True)])
             else:

@@ -46,6 +46,7 @@ from __future__ import annotations
 import ctypes
 import mmap
 import multiprocessing
+import os
 import time
 import weakref
 from collections import deque
@@ -55,6 +56,7 @@ import numpy as np
 import warp as wp
 from threadpoolctl import threadpool_limits
 
+from ..processes import bind_to_parent
 from .assembly import CholmodFactor, Pattern
 from .supernodal import Supernodal
 
@@ -148,11 +150,12 @@ def _landed(arena, block: int, info: Block, job: int) -> None:
         time.sleep(5e-5)
 
 
-def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type) -> None:
+def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type, parent: int) -> None:
     """A worker: for each ``(job, block, stiffness_scale, mass_scale)`` received, once its element
     blocks landed, :func:`refactor`, then ``(job, None or the error, seconds waiting for the blocks,
     seconds refactorizing)`` sent back; None stops it. While nothing waits, it analyses its blocks
-    one by one (:func:`warm`)."""
+    one by one (:func:`warm`). It ends when its ``parent`` (pid) does (:func:`~warpsoft.processes.bind_to_parent`)."""
+    bind_to_parent(parent)
     _WORKER_LIMITS.append(threadpool_limits(1))  # one BLAS thread: small products, and the workers fill the cores
     cache = {}
     cold = sorted(blocks)
@@ -239,8 +242,8 @@ class Refactorizer:
         for k in range(self.workers):  # forked: they run CHOLMOD and numpy, never Warp or CUDA
             mine = {b: info for b, info in blocks.items() if b % self.workers == k}
             parent, child = context.Pipe()
-            proc = context.Process(target=_serve, args=(child, self._arenas[k], mine, self.panel_rows, dtype),
-                                   daemon=True, name=f"warpsoft-refactor-{k}")
+            proc = context.Process(target=_serve, name=f"warpsoft-refactor-{k}", daemon=True,
+                                   args=(child, self._arenas[k], mine, self.panel_rows, dtype, os.getpid()))
             proc.start()
             child.close()
             self._procs.append((proc, parent))
