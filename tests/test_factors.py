@@ -546,19 +546,27 @@ def test_a_world_refactorized_alone_not_positive_definite_names_its_world(monkey
 def test_worlds_refactorized_in_workers_step_as_in_this_process(monkeypatch):
     """The workers' factors are this process's: four designs refreshed world by world (a floor of
     1, a ratio of 1) step to the same positions, bit for bit, with two worker processes as with
-    none."""
+    none; and so they do where a worker, or this process, keeps one block's analysis alone (the
+    others dropped, analysed anew at their next refactorization)."""
+    from warpsoft.linear import refactor
+
     monkeypatch.setattr(factors, "WORLD_FLOOR", 1)
     monkeypatch.setattr(factors, "WORLD_RATIO", 1.0)
-    runs = []
-    for workers in (2, 1):
+    runs, kept, real = [], [], refactor._keep
+    monkeypatch.setattr(refactor, "_keep", lambda cache, block, keep: kept.append(block) or real(cache, block, keep))
+    for workers, keep in ((2, refactor.KEEP_ANALYSES), (1, refactor.KEEP_ANALYSES), (2, 1), (1, 1)):
         monkeypatch.setattr(factors, "WORKERS", workers)
+        monkeypatch.setattr(refactor, "KEEP_ANALYSES", keep)
         sim = ws.Simulator(ws.finalize(four_designs()), solver="pcg", preconditioner="factors",
                            precision="float64", tolerance=1e-10, share_tolerance=0.0)
         stats = [sim.step() for _ in range(5)]
         pre = sim.solver.precond
         assert pre.world_refreshes > 0 and pre.refactorizer.workers == (workers if workers > 1 else 0)
+        assert pre.refactorizer.keep == keep and len(pre.refactorizer._cache) <= keep
         runs.append((sim.positions(), [s.cg_iterations for s in stats], pre.world_refreshes))
-    assert np.array_equal(runs[0][0], runs[1][0]) and runs[0][1:] == runs[1][1:]
+    for run in runs[1:]:
+        assert np.array_equal(runs[0][0], run[0]) and runs[0][1:] == run[1:]
+    assert len(set(kept)) > 1  # (this process refactorized more blocks than it kept analyses of)
 
 
 def test_worlds_refactorized_alone_step_as_alone(monkeypatch):

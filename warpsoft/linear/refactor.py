@@ -64,6 +64,13 @@ _WORKER_LIMITS = []  # a worker's BLAS thread limit, held for its life
 # how long a worker waits for a job's element blocks to land once told of it (s): the copy is
 # already queued then, behind at most the boundary's few launches
 READY_TIMEOUT = 120.0
+# the most blocks' analyses (CHOLMOD's, the supernodes' and their panels' places) a worker keeps,
+# the least recently used dropped past it; it analyses that many of its blocks ahead. About 6 MB a
+# Diamond: 4096 Diamonds' 256 a worker on the H200's host would hold 1.5 GB in each of 16 workers.
+# 64: every block of 1024 Diamonds on 16 workers (the measurements of record); past that, a block
+# dropped, or never analysed ahead, costs its next refactorization the analysis (25-32 ms for a
+# Diamond on the 2-core VM, against 10-13 analysed)
+KEEP_ANALYSES = 64
 # pages left locked by refactorizers shut down while their device captured a graph: ``(device,
 # addresses, arenas)``, unlocked at the next chance outside a capture (the arenas kept mapped till then)
 _UNLOCK_LATER: list[tuple] = []
@@ -150,15 +157,25 @@ def _landed(arena, block: int, info: Block, job: int) -> None:
         time.sleep(5e-5)
 
 
-def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type, parent: int) -> None:
+def _keep(cache: dict, block: int, keep: int) -> None:
+    """``block``'s analysis in ``cache`` made the most recent, and the least recent ones dropped
+    past ``keep`` (a dict keeps its order of insertion)."""
+    if block in cache:
+        cache[block] = cache.pop(block)
+    while len(cache) > keep:
+        cache.pop(next(iter(cache)))
+
+
+def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type, parent: int, keep: int) -> None:
     """A worker: for each ``(job, block, stiffness_scale, mass_scale)`` received, once its element
     blocks landed, :func:`refactor`, then ``(job, None or the error, seconds waiting for the blocks,
-    seconds refactorizing)`` sent back; None stops it. While nothing waits, it analyses its blocks
-    one by one (:func:`warm`). It ends when its ``parent`` (pid) does (:func:`~warpsoft.processes.bind_to_parent`)."""
+    seconds refactorizing)`` sent back; None stops it. While nothing waits, it analyses its first
+    ``keep`` blocks one by one (:func:`warm`), and it keeps the analyses of the ``keep`` blocks it
+    used last. It ends when its ``parent`` (pid) does (:func:`~warpsoft.processes.bind_to_parent`)."""
     bind_to_parent(parent)
     _WORKER_LIMITS.append(threadpool_limits(1))  # one BLAS thread: small products, and the workers fill the cores
     cache = {}
-    cold = sorted(blocks)
+    cold = sorted(blocks)[:keep]
     analysed = np.frombuffer(arena, np.int64, 1, 0)  # (the arena's header: the blocks tried ahead)
     while True:
         while cold and not conn.poll():
@@ -181,6 +198,7 @@ def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type, parent: int)
             error = None
         except Exception as e:  # (sent back, raised where the job is installed)
             error = e
+        _keep(cache, block, keep)
         conn.send((job, error, landed - start, time.perf_counter() - landed))
 
 
@@ -214,6 +232,8 @@ class Refactorizer:
         dtype: the values' numpy type.
         device: the model's device (CUDA: the copies to the workers on a stream of their own, into
             page-locked shared memory).
+        keep: the most blocks' analyses a worker keeps, and analyses ahead (default
+            :data:`KEEP_ANALYSES`).
 
     Attributes: ``workers`` (processes; 0: none), ``boundary`` (the boundaries counted), ``pending``
     (block -> :class:`Job`), ``waited`` (seconds the host waited on workers, in all), ``submitted``,
@@ -223,9 +243,12 @@ class Refactorizer:
     """
 
     def __init__(self, blocks: dict[int, Block], arenas: list[int], lag: int, panel_rows: int, dtype: type,
-                 device):
+                 device, keep: int | None = None):
         if lag < 0:
             raise ValueError(f"Refactorizer: the lag is a count of step boundaries, got {lag}")
+        self.keep = KEEP_ANALYSES if keep is None else int(keep)
+        if self.keep < 1:
+            raise ValueError(f"Refactorizer: a worker keeps at least one block's analysis, got keep={keep!r}")
         self.lag, self.panel_rows, self.dtype = int(lag), int(panel_rows), dtype
         self.boundary, self.pending, self.waited, self.submitted = 0, {}, 0.0, 0
         self.landing, self.working = [], []  # per job answered by a worker: s waiting for its blocks, s working
@@ -243,7 +266,8 @@ class Refactorizer:
             mine = {b: info for b, info in blocks.items() if b % self.workers == k}
             parent, child = context.Pipe()
             proc = context.Process(target=_serve, name=f"warpsoft-refactor-{k}", daemon=True,
-                                   args=(child, self._arenas[k], mine, self.panel_rows, dtype, os.getpid()))
+                                   args=(child, self._arenas[k], mine, self.panel_rows, dtype, os.getpid(),
+                                         self.keep))
             proc.start()
             child.close()
             self._procs.append((proc, parent))
@@ -328,16 +352,17 @@ class Refactorizer:
                 try:
                     refactor(self._cache, self._arenas[0], block, self.blocks[block], stiffness_scale, mass_scale,
                              self.panel_rows, self.dtype)
+                    _keep(self._cache, block, self.keep)
                     self._errors[first + i] = None
                 except ArithmeticError as e:  # raised where the job is installed, as a worker's would be
                     self._errors[first + i] = e
 
     def settle(self, timeout: float = 600.0) -> float:
-        """Wait until every worker has analysed its blocks ahead (:func:`warm`); returns the seconds
-        waited. (A benchmark's timed steps then see what a long run's do.)"""
+        """Wait until every worker has analysed its blocks ahead (:func:`warm`, ``keep`` at most);
+        returns the seconds waited. (A benchmark's timed steps then see what a long run's do.)"""
         start = time.perf_counter()
         for k, (proc, _) in enumerate(self._procs):
-            mine = sum(1 for b in self.blocks if b % self.workers == k)
+            mine = min(sum(1 for b in self.blocks if b % self.workers == k), self.keep)
             analysed = np.frombuffer(self._arenas[k], np.int64, 1, 0)
             while analysed[0] < mine:
                 if not proc.is_alive():
