@@ -21,6 +21,7 @@ import scipy.sparse as sp
 import warp as wp
 
 from .operator import SystemOperator
+from .supernodal import narrow
 
 # numbers of a dense right-hand side per CHOLMOD solve: cvxopt's cholmod.solve crashed (a segmentation
 # fault, on the H200's host) on the identity of the PneuNet's 20916 free DOFs (437M numbers, 3.5 GB); runs
@@ -71,6 +72,8 @@ class Pattern:
         self.keep = np.flatnonzero((r >= 0) & (c >= 0) & (r >= c))  # free, lower triangle
         key = c[self.keep] * self.size + r[self.keep]  # column-major order = CSC order
         unique, self.slot = np.unique(key, return_inverse=True)
+        # (kept for every mesh of a batch: in 32 bits where they fit, half the bytes)
+        self.keep, self.slot = narrow(self.keep), narrow(self.slot)
         self.indices = (unique % self.size).astype(np.int64)
         col_of = unique // self.size
         self.indptr = np.searchsorted(col_of, np.arange(self.size + 1)).astype(np.int64)

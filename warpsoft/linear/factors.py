@@ -33,7 +33,9 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+from collections import deque
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from functools import partial
 
 import numpy as np
@@ -83,6 +85,9 @@ PANEL_SPREAD = (8.0, 1.0)
 WIDE_FROM, WIDE_LANES = 256.0, 128
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
+# the blocks sent ahead to them, per worker: the rest wait (their systems unmade), their results taken in
+# order as they come (all of 4096 Diamonds' sent at once, their systems and results held 31 GB of the host)
+AHEAD = 4
 # a world's own refresh (panels): its block is factorized anew at its state, between steps, when its CG
 # needed more than WORLD_RATIO times the iterations of its first solve after its block's last
 # factorization, and more than WORLD_FLOOR (None: never), by worker processes beside the steps and
@@ -108,6 +113,32 @@ def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str,
     L, order = CholmodFactor(sparsity, ordering=ordering).lower(values)
     analysis = Supernodal(L)
     return order, analysis.panels(L, panel_rows) if panel_rows else analysis.programs(L)
+
+
+def _ahead(pool: ProcessPoolExecutor, jobs, ahead: int):
+    """Each of ``jobs`` (argument tuples of :func:`factor_programs`) sent to ``pool``, at most
+    ``ahead`` of them waiting: yields, in order, each one's ``result`` (a call), the next job
+    sent once it is taken."""
+    waiting = deque()
+    for job in jobs:
+        waiting.append(pool.submit(factor_programs, *job))
+        if len(waiting) >= ahead:
+            yield waiting.popleft().result
+    while waiting:
+        yield waiting.popleft().result
+
+
+def _stacked(parts: list[np.ndarray], dtype, device, into: wp.array | None = None) -> wp.array:
+    """``parts`` one after another in one array of ``dtype`` on ``device`` (``into``, or a new
+    one), copied part by part: the host never holds them joined (4096 Diamonds' panels: 9 GB)."""
+    out = wp.empty(sum(len(p) for p in parts), dtype=dtype, device=device) if into is None else into
+    at, kind = 0, wp.dtype_to_numpy(dtype)
+    for part in parts:
+        if len(part):
+            host = wp.array(np.ascontiguousarray(part, dtype=kind), dtype=dtype, device="cpu", copy=False)
+            wp.copy(out, host, dest_offset=at, count=len(part))
+        at += len(part)
+    return out
 
 
 def _by_level(levels: np.ndarray, per_world: np.ndarray, kind: list, device) -> tuple:
@@ -190,8 +221,8 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         self.panel_rows, self.panel_spread = PANEL_ROWS, PANEL_SPREAD
         self.panel_unroll = kernels.PANEL_UNROLL if d.is_cuda else 1
         self.wide_from, self.wide_lanes = (WIDE_FROM if d.is_cuda else None), WIDE_LANES
-        # the entries' types: their values in `dtype`, their columns uint16 or int32 (set at the first
-        # lay-out: :data:`NARROW_PLACES`)
+        # the entries' types: their values in `dtype`, their columns uint16 or int32 (set with the
+        # patterns below: :data:`NARROW_PLACES`)
         self.value_dtype, self.index_dtype = self.dtype, None
         rows = 3 * m.num_nodes
         # the solves' operands, flat (3 nodes, k), each world's rows in its factor's order
@@ -207,6 +238,9 @@ class WorldFactors(OwnRefreshes, WorldGroups):
             free = np.zeros(3 * nodes, dtype=bool)
             free[self.local_free[self.mesh_of.index(key)]] = True
             self.patterns[key] = Pattern(flat // (3 * nodes), flat % (3 * nodes), free)
+        # an entry's column is a place of its factor, which has a place per free DOF
+        places = max((p.size for p in self.patterns.values()), default=0)
+        self.index_dtype = wp.uint16 if places <= NARROW_PLACES else wp.int32
         self.orders = []  # per block, the factor's ordering (the DOF at each place), made at the first refresh
         self.workers = WORKERS
         self.solves = None  # per direction: (tasks, col, val, [(first, count, long rows) per level])
@@ -302,11 +336,10 @@ class WorldFactors(OwnRefreshes, WorldGroups):
                 # wherever it lacks the `if __name__ == "__main__"` guard
                 with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
                                          initializer=bind_to_parent, initargs=(os.getpid(),)) as pool:
-                    futures = [pool.submit(factor_programs, *job) for job in jobs]
-                    self._take(m, first, [(w, f.result) for w, f in zip(self.first_world, futures, strict=True)])
+                    self._take(m, first, zip(self.first_world, _ahead(pool, jobs, AHEAD * workers), strict=True))
             else:
-                self._take(m, first, [(w, partial(factor_programs, *job))
-                                      for w, job in zip(self.first_world, jobs, strict=True)])
+                self._take(m, first, ((w, partial(factor_programs, *job))
+                                      for w, job in zip(self.first_world, jobs, strict=True)))
         self.take_frame()
         self._world_first[:] = 0  # every world's count starts anew
         if self._due is not None:
@@ -319,15 +352,20 @@ class WorldFactors(OwnRefreshes, WorldGroups):
             self._start_own()
             self.refactorizer = self._refactorizer()
 
-    def _take(self, m, first: bool, results: list) -> None:
-        """Lay out the blocks' programs, ``results`` ``[(world, call)]`` in block order, each call
-        returning :func:`factor_programs`'s; a system not positive definite names its world.
-        ``m``: the model."""
+    def _take(self, m, first: bool, results) -> None:
+        """Lay out the blocks' programs, ``results`` (an iterable of ``(world, call)``) in block
+        order, each call returning :func:`factor_programs`'s; a system not positive definite names
+        its world. Panels are kept as the device will hold them (their values in the factors'
+        precision, their columns in ``index_dtype``) as they come. ``m``: the model."""
+        npd = np.float64 if self.dtype == wp.float64 else np.float32
+        index = wp.dtype_to_numpy(self.index_dtype)
         programs = []
         for b, (w, result) in enumerate(results):
             order, program = self._factorized(m, b, w, result, first)
             if first:
                 self.orders.append(order)
+            if self.layout == "panels":  # (the host's copies till the lay-out: 4096 Diamonds' were 19 GB in float64)
+                program = tuple(replace(p, val=p.val.astype(npd), col=p.col.astype(index)) for p in program)
             programs.append(program)
         self._lay_out(programs)
 
@@ -352,8 +390,6 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         holds them)."""
         m, d = self.op.model, self.op.model.device
         npd = np.float64 if self.dtype == wp.float64 else np.float32
-        if self.index_dtype is None:  # an entry's column is a place of its factor
-            self.index_dtype = wp.uint16 if max(len(o) for o in self.orders) <= NARROW_PLACES else wp.int32
         if self.place is None:
             # each model DOF's row among the operands: world w's factor place p at 3 n_w + p (the
             # rows its ordering keeps together lie together), -1 for a fixed DOF
@@ -418,16 +454,16 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         for direction in range(2):
             progs = [p[direction] for p in programs]
             values = np.concatenate([[0], np.cumsum([len(p.val) for p in progs])])
-            val = np.concatenate([p.val for p in progs]).astype(npd)
             starts.append(values)
-            if self.solves is not None:
-                self.solves[direction][2].assign(val)
+            if self.solves is not None:  # (in place: the captured graphs read it)
+                _stacked([p.val for p in progs], self.value_dtype, d, self.solves[direction][2])
                 continue
             if values[-1] >= 2 ** 31:
                 raise ValueError(f"WorldFactors: {values[-1]} values pass the 2^31 a Warp index holds; "
                                  "step fewer designs at a time")
+            val = _stacked([p.val for p in progs], self.value_dtype, d)
             cols = np.concatenate([[0], np.cumsum([len(p.col) for p in progs])])
-            col = np.concatenate([p.col for p in progs]).astype(wp.dtype_to_numpy(self.index_dtype))
+            col = _stacked([p.col for p in progs], self.index_dtype, d)
             depth = max(p.levels for p in progs)
             tasks, levels = [], []
             per_world = np.zeros((depth, m.num_worlds), dtype=np.int64)  # each level's panels of each world
@@ -443,9 +479,8 @@ class WorldFactors(OwnRefreshes, WorldGroups):
             count = np.maximum(np.bincount(levels, minlength=depth), 1)
             reads = np.bincount(levels, weights=tasks[:, 4] + tasks[:, 5], minlength=depth) / count
             order, level_list, spans = _by_level(levels, per_world, [float(r) for r in reads], d)
-            solves.append((wp.array(tasks[order].astype(np.int32), dtype=kernels.panel_task, device=d),
-                           wp.array(col, dtype=self.index_dtype, device=d),
-                           wp.array(val, dtype=self.value_dtype, device=d), level_list, spans))
+            solves.append((wp.array(tasks[order].astype(np.int32), dtype=kernels.panel_task, device=d), col, val,
+                           level_list, spans))
         self._value_start = starts
         if self.solves is None:
             self.solves = solves

@@ -173,7 +173,7 @@ class Supernodal:
             seen = np.zeros((b - a, len(J)), dtype=bool)
             dest = row * len(J) + np.searchsorted(J, col)
             seen.flat[dest] = True
-            self.left.append((J, np.logical_or.accumulate(seen, axis=0), src, dest))
+            self.left.append((J, np.logical_or.accumulate(seen, axis=0), narrow(src), narrow(dest)))
         self._layouts = {}  # rows -> the panels, each value its place in the supernode rows (_panel_layout)
 
     @property
@@ -297,8 +297,16 @@ def _panels(chunks: list) -> Panels:
     return Panels(np.array([c[0] for c in chunks], dtype=np.int64), np.array([c[1] for c in chunks], dtype=np.int64),
                   height, reads, np.concatenate([[0], np.cumsum(reads.sum(axis=1))[:-1]]),
                   np.concatenate([[0], np.cumsum(sizes)[:-1]]),
-                  np.concatenate([np.concatenate([c[2], c[3]]) for c in chunks]).astype(np.int64),
-                  np.concatenate([c[4].ravel() for c in chunks]))
+                  narrow(np.concatenate([np.concatenate([c[2], c[3]]) for c in chunks])),
+                  narrow(np.concatenate([c[4].ravel() for c in chunks])))
+
+
+def narrow(index: np.ndarray) -> np.ndarray:
+    """``index`` (integers, at least 0) as int32 where they fit, else int64: a worker keeps every
+    block's panels' places (:meth:`Supernodal.panel_values`), 4096 Diamonds of them on the H200's
+    host (docs/performance.md)."""
+    fits = index.size == 0 or int(index.max()) <= np.iinfo(np.int32).max
+    return index.astype(np.int32 if fits else np.int64, copy=False)
 
 
 def _program(parts: list, level: np.ndarray) -> Program:
