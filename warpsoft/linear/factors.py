@@ -46,7 +46,7 @@ from warpsoft.kernels.linear import factors as kernels
 
 from ..errors import SceneError
 from ..launch import launch
-from ..processes import bind_to_parent
+from ..processes import bind_to_parent, release_freed
 from .assembly import ORDERINGS, CholmodFactor, Pattern, Sparsity
 from .blocks import WorldGroups, _dense_entries
 from .operator import SystemOperator
@@ -348,7 +348,9 @@ class WorldFactors(OwnRefreshes, WorldGroups):
             self.refactorizer.cancel()
         elif first and self.world_floor is not None and self.layout == "panels":
             # the workers forked now, while the model is built: they analyse their blocks before
-            # the steps need them (forking 16 from the H200's full host took 3.1 s)
+            # the steps need them (forking 16 from the H200's full host took 3.1 s); the memory the
+            # factorization freed given back first (its pages not inherited)
+            release_freed()
             self._start_own()
             self.refactorizer = self._refactorizer()
 
