@@ -28,7 +28,7 @@ def _watch(parent: int, period: float) -> None:
 
 
 def bind_to_parent(parent: int, period: float = PERIOD) -> None:
-    """In a worker process: end it within ``period`` seconds once its parent, pid ``parent``,
+    """In a worker process: end it within about ``period`` seconds once its parent, pid ``parent``,
     has ended (its parent pid then changes: the worker is adopted). A daemon thread looks, so
     the worker's own work goes on meanwhile; a worker whose parent is already gone ends at
     once. (Not Linux's ``PR_SET_PDEATHSIG``: that fires when the *thread* that started the

@@ -108,7 +108,7 @@ class WorldGroups(WarpedFrames):
         """Which worlds share a block: the same mesh and supports, proportional values. A world
         takes the block of the first earlier world of its mesh it is proportional to; the blocks
         are numbered by their first worlds. Done mesh by mesh, holding the values of one mesh's
-        blocks at a time (a Diamond's are 5.8 MB: 4096 of them held at once were 24 GB)."""
+        blocks at a time (a Diamond's are 3.3-6.9 MB: 4096 of them held at once, about 19 GB)."""
         m = self.op.model
         leader, scale = np.arange(m.num_worlds), np.ones(m.num_worlds)  # each world's block's first world
         by_mesh: dict[tuple, list[int]] = {}

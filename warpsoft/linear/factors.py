@@ -86,7 +86,8 @@ WIDE_FROM, WIDE_LANES = 256.0, 128
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
 # the blocks sent ahead to them, per worker: the rest wait (their systems unmade), their results taken in
-# order as they come (all of 4096 Diamonds' sent at once, their systems and results held 31 GB of the host)
+# order as they come (all sent at once, a Diamond's system, job and result held about 7.7 MB of the host
+# each: 64 on the CPU VM; 4096 of them, about 31 GB)
 AHEAD = 4
 # a world's own refresh (panels): its block is factorized anew at its state, between steps, when its CG
 # needed more than WORLD_RATIO times the iterations of its first solve after its block's last
@@ -130,7 +131,8 @@ def _ahead(pool: ProcessPoolExecutor, jobs, ahead: int):
 
 def _stacked(parts: list[np.ndarray], dtype, device, into: wp.array | None = None) -> wp.array:
     """``parts`` one after another in one array of ``dtype`` on ``device`` (``into``, or a new
-    one), copied part by part: the host never holds them joined (4096 Diamonds' panels: 9 GB)."""
+    one), copied part by part: the host never holds them joined (joined,
+    with their tasks, they are the factors' device memory: 16 GB for 4096 Diamonds on the H200)."""
     out = wp.empty(sum(len(p) for p in parts), dtype=dtype, device=device) if into is None else into
     at, kind = 0, wp.dtype_to_numpy(dtype)
     for part in parts:
@@ -366,7 +368,7 @@ class WorldFactors(OwnRefreshes, WorldGroups):
             order, program = self._factorized(m, b, w, result, first)
             if first:
                 self.orders.append(order)
-            if self.layout == "panels":  # (the host's copies till the lay-out: 4096 Diamonds' were 19 GB in float64)
+            if self.layout == "panels":  # (held till the lay-out: 4.7 MB a Diamond in float64)
                 program = tuple(replace(p, val=p.val.astype(npd), col=p.col.astype(index)) for p in program)
             programs.append(program)
         self._lay_out(programs)
