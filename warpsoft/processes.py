@@ -44,8 +44,8 @@ def bind_to_parent(parent: int, period: float = PERIOD) -> None:
 def release_freed() -> None:
     """Give the memory this process has freed back to the system (glibc's ``malloc_trim``; nothing
     elsewhere). The blocks' programs of a first factorization are freed in arrays of a few MB, which
-    glibc keeps in its heap for later: 64 different Diamonds on the 2-core VM kept 166 MB of them
-    (2.6 MB a block), which workers forked after would also map."""
+    glibc keeps in its heap for later: 64 different Diamonds on the 2-core VM kept about 150 MB of
+    them (2.4 MB a block) after their first step."""
     try:
         ctypes.CDLL("libc.so.6").malloc_trim(0)
     except (OSError, AttributeError):
