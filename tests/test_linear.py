@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import warp as wp
 from warpsoft.kernels.linear.cg import DONE, NUM_SCALARS
@@ -242,6 +243,51 @@ def test_a_factor_per_world_solves_and_gives_the_compliance_of_the_whole_factor(
         for factor in (direct.factor, whole):
             gram = factor.gram(dof, column, value, 6)
             assert gram.shape == (6, 6) and np.abs(gram - ref).max() < 1e-10 * np.abs(ref).max()
+
+
+def wide_beam(static=False):
+    """bent_beam's beam on a coarser grid: another mesh."""
+    scene = bent_beam(static)
+    scene.bodies[0].mesh = ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (10, 2, 2))
+    return scene
+
+
+@pytest.mark.parametrize("kind", ["one_group", "three_groups"])
+def test_the_world_by_world_assembly_sums_the_element_blocks_of_the_whole_model(kind, monkeypatch):
+    """``A`` assembled world by world (a pattern per mesh and supports, shared) is the sum of every
+    element block of the whole model plus the scaled masses, over the free DOFs, at a bent state;
+    forming the blocks a world at a time gives the same numbers to the bit. One element group (two
+    beams of one mesh, different stiffness, and a coarser one) and three (each world a linear, a
+    10-node and a Neo-Hookean beam)."""
+    if kind == "one_group":
+        stiff = bent_beam()
+        stiff.bodies[0].material = ws.Material(3e6, 0.45, 1000.0)
+        scenes, same = [bent_beam(), stiff, wide_beam()], [(0, 1)]
+    else:
+        scenes, same = [three_elements(1.0), three_elements(3.0)], [(0, 1)]
+    sim = ws.Simulator(scenes, solver="direct")
+    for _ in range(3):
+        sim.step()
+    sim.solver.prepare()
+    asm, op, m = sim.solver.assembly, sim.operator, sim.model
+    for a, b in same:
+        assert asm.patterns[a] is asm.patterns[b]
+    assert len({id(p) for p in asm.patterns}) == len(scenes) - len(same)
+    blocks = wp.zeros(op.elastic.num_blocks, dtype=wp.mat33d)
+    op.elastic.blocks(op.rot, blocks)
+    pairs = op.elastic.block_nodes()
+    i, shape = np.arange(3), (len(pairs), 3, 3)  # entry (block, i, j) at (3 a + i, 3 b + j)
+    rows = np.broadcast_to(3 * pairs[:, 0, None, None] + i[:, None], shape).ravel()
+    cols = np.broadcast_to(3 * pairs[:, 1, None, None] + i[None, :], shape).ravel()
+    n = 3 * m.num_nodes
+    K = sp.coo_matrix((blocks.numpy().ravel(), (rows, cols)), shape=(n, n)).tocsc()
+    A = op.stiffness_scale * K + op.mass_scale * sp.diags(np.repeat(m.mass_np, 3))
+    want = A[asm.free][:, asm.free].toarray()
+    got = asm.matrix().toarray()
+    assert op.mass_scale > 0 and np.abs(got - want).max() < 1e-12 * np.abs(want).max()
+    values = asm.values()
+    monkeypatch.setattr(assembly, "CHUNK_BLOCKS", 1)  # a world's blocks at a time
+    assert np.array_equal(asm.values(), values)
 
 
 def test_a_wide_right_hand_side_is_solved_in_runs_of_columns(monkeypatch):

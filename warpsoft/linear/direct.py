@@ -68,12 +68,11 @@ class SparseDirect:
         due = self._due & ~(self.keep & self._made)
         if not due.any():
             return
-        values = self.assembly.values()
-        if isinstance(self.factor, WorldsCholmod):
-            self.factor.factorize(values, due)
+        if isinstance(self.factor, WorldsCholmod):  # each world's values assembled as it is factorized
+            self.factor.factorize(due)
         else:  # one factor of every world
             due[:] = True
-            self.factor.factorize(values)
+            self.factor.factorize(self.assembly.values())
         self._made |= due
         self._due &= ~due
         self.factorizations += int(due.sum())
@@ -119,14 +118,11 @@ class SparseDirect:
         W.fill(0.0)
         if not len(used):
             return
-        zz = scale * self.factor.gram(dof[keep], column, h_coef[keep], len(used))  # every pair of Z's columns
-        place = np.full(rows.num_rows, -1)
-        place[used] = np.arange(len(used))
-        force_rows = rows.world_force_rows.numpy()
-        for w in range(rows.num_worlds):
-            s, e = int(rows.world_row_start[w]), int(rows.world_row_start[w + 1])
-            mine = used[(used >= s) & (used < e)]  # the world's rows with soft entries
-            f = place[s:s + int(force_rows[w])]  # its force rows in use, as columns
-            cols = np.flatnonzero(f >= 0)
-            if len(mine) and len(cols):
-                W[np.ix_(mine, cols)] = zz[np.ix_(place[mine], f[cols])]
+        starts, force_rows = rows.world_row_start, rows.world_force_rows.numpy()
+        # Z^T Z by blocks of columns (a world's, or all of them), every pair of a block's columns
+        for cols, zz in self.factor.gram_parts(dof[keep], column, h_coef[keep], len(used)):
+            row = used[cols]
+            world = np.searchsorted(starts, row, side="right") - 1
+            local = row - starts[world]  # a row's place in its world: its column of W if a force row
+            i, j = np.nonzero((world[:, None] == world[None, :]) & (local < force_rows[world])[None, :])
+            W[row[i], local[j]] = scale * zz[i, j]
