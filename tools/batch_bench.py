@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 import time
 from datetime import date
@@ -80,6 +81,44 @@ def _switches() -> int:
     return resource.getrusage(who).ru_nivcsw if who is not None else 0
 
 
+class ModuleLoads:
+    """A Warp logger (``wp.set_logger``) that adds up the kernel modules' loads while it is in use
+    (``with``): their count and time (ms), compiled or taken from the kernel cache, which is how
+    much of a setup is kernel compilation. Warnings and errors go on as Warp's own logger has them."""
+
+    LOAD = re.compile(r"load on device '[^']*' took ([0-9.]+) ms\s*\((compiled|cached)\)")
+
+    def __init__(self):
+        self.ms = {"compiled": 0.0, "cached": 0.0}
+        self.count = {"compiled": 0, "cached": 0}
+        self._saved = None
+
+    def __enter__(self) -> ModuleLoads:
+        self._saved = (wp.get_logger(), wp.config.log_level)
+        wp.config.log_level = wp.LOG_INFO  # (the module loads are timed at this level only)
+        wp.set_logger(self)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        logger, wp.config.log_level = self._saved
+        wp.set_logger(logger)
+
+    def debug(self, message: str) -> None:
+        pass
+
+    def info(self, message: str) -> None:
+        found = self.LOAD.search(message)
+        if found:
+            self.ms[found.group(2)] += float(found.group(1))
+            self.count[found.group(2)] += 1
+
+    def warning(self, message: str, category=None, stacklevel: int = 1) -> None:
+        self._saved[0].warning(message, category, stacklevel + 1)
+
+    def error(self, message: str) -> None:
+        self._saved[0].error(message)
+
+
 def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: bool = False,
                 **options) -> tuple[float, int, dict]:
     """Median step time (s) of ``scenes`` as one model, its DOFs, and what the solve did: the CG
@@ -88,16 +127,29 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
     ``kernels`` (CUDA), one more step uncaptured, each kernel and copy timed (``info["kernels"]``);
     and each timed step's time, its graphs' and its CG iterations (the host's share is the first
     less the second); and the stepping thread's CPU time and involuntary context switches (Linux),
-    a step's mean: a host whose cores other processes share shows it there."""
+    a step's mean: a host whose cores other processes share shows it there. The setup's parts
+    (``setup_parts_s``): the model, the simulator, the first step (and its stages), the other
+    warm-up steps, the refactorizer's settling; and the kernel modules loaded in all of it
+    (``module_loads``: compiled or from the cache, their count and ms)."""
     t0 = time.perf_counter()
-    sim = ws.Simulator(ws.finalize(scenes, device), device=device, **options)
-    for _ in range(warmup):
-        sim.step()
-    pre = getattr(sim.solver, "precond", None)
-    refactor = getattr(pre, "refactorizer", None)  # a world's own refresh: its workers' analyses ahead,
-    settled = refactor.settle() if refactor is not None else 0.0  # done before the timed steps as in a long run
-    answered = len(refactor.working) if refactor is not None else 0
+    setup_parts, first_stages = {}, {}
+    with ModuleLoads() as loads:
+        model = ws.finalize(scenes, device)
+        setup_parts["model"] = time.perf_counter() - t0
+        sim = ws.Simulator(model, device=device, **options)
+        setup_parts["simulator"] = time.perf_counter() - t0 - sum(setup_parts.values())
+        for k in range(warmup):
+            stats = sim.step()
+            if k == 0:
+                setup_parts["first_step"] = time.perf_counter() - t0 - sum(setup_parts.values())
+                first_stages = dict(stats.stages)
+        setup_parts["warmup_rest"] = time.perf_counter() - t0 - sum(setup_parts.values())
+        pre = getattr(sim.solver, "precond", None)
+        refactor = getattr(pre, "refactorizer", None)  # a world's own refresh: its workers' analyses ahead,
+        settled = refactor.settle() if refactor is not None else 0.0  # done before the timed steps as in a long run
+        answered = len(refactor.working) if refactor is not None else 0
     setup = time.perf_counter() - t0
+    setup_parts["settle"] = setup - sum(setup_parts.values())
     times, its, world_its, graphs, refresh = [], [], [], [], []
     refreshed = getattr(pre, "world_refreshes", 0)
     cpu0, switched0 = time.thread_time(), _switches()
@@ -135,9 +187,20 @@ def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: boo
             "step_cg_iterations": its, "step_mean_ms": 1e3 * float(np.mean(times)),
             "world_refreshes": refreshed, "refresh_ms": 1e3 * float(np.mean(refresh)), **waited, **thread,
             "cg_iterations": float(np.median(its)), "world_cg_iterations": float(np.median(world_its)),
-            "setup_s": setup, "preconditioner": type(pre).__name__,
+            "setup_s": setup, "setup_parts_s": setup_parts, "first_step_stages_s": first_stages,
+            "module_loads": {"count": loads.count, "ms": loads.ms}, "preconditioner": type(pre).__name__,
             "blocks": getattr(pre, "blocks", None), "precond_mb": getattr(pre, "memory_bytes", 0) / 1e6}
     return float(np.median(times)), sim.model.num_dofs, info
+
+
+def _setup_parts(info: dict) -> str:
+    """The setup's parts, the first step's three longest stages and the kernel modules' loads (s)."""
+    parts = ", ".join(f"{name} {s:.1f}" for name, s in info["setup_parts_s"].items())
+    stages = sorted(info["first_step_stages_s"].items(), key=lambda kv: -kv[1])[:3]
+    loads = info["module_loads"]
+    return (f"{parts} s (the first step's longest stages: {', '.join(f'{k} {s:.1f}' for k, s in stages)} s); "
+            f"kernel modules: {loads['count']['compiled']} compiled in {loads['ms']['compiled'] / 1e3:.1f} s, "
+            f"{loads['count']['cached']} from the cache in {loads['ms']['cached'] / 1e3:.1f} s")
 
 
 def uncaptured_kernels(sim) -> dict:
@@ -273,6 +336,7 @@ def main(argv=None) -> int:
               f"{info['thread_cpu_ms']:.2f} ms and {info['involuntary_switches']:.1f} switches a step"
               f"{_job_times(info)}"
               f"{', page-locked' if info.get('refactor_page_locked') else ''})", flush=True)
+        print(f"  setup: {_setup_parts(info)}", flush=True)
         _write(out, meta, rows, alone)  # (each batch size kept as it is measured: a later one may fail)
     if args.alone:
         k = args.alone
