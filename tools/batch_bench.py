@@ -11,7 +11,9 @@ design-steps per second (designs / step time), and over the whole run (designs /
 mean: what a sweep of that many steps gets, its refactorizations included). ``--alone K``: the
 first K designs one at a time (the sum of their medians) against the batch of the same K.
 ``--kernels`` (CUDA): after the timed steps, one more step uncaptured with each kernel and copy
-timed (batch.json's ``kernels``, and kernels.md). Writes batch.json and batch.md.
+timed (batch.json's ``kernels``, and kernels.md). Under each batch line, the setup's parts (the
+model, the simulator, the first step and its longest stages, the rest of the warm-up) and the
+kernel modules it loaded, compiled or from Warp's cache. Writes batch.json and batch.md.
 """
 
 from __future__ import annotations
