@@ -84,11 +84,7 @@ class Elements:
 
     def block_nodes(self) -> np.ndarray:
         """The global node ids ``(a, b)`` each block of :meth:`blocks` couples, ``(num_blocks, 2)``."""
-        pairs = []
-        for g in self.groups:
-            e, k = g.group.elems_np.astype(np.int64), g.nodes_per_element
-            pairs.append(np.stack([np.repeat(e, k, axis=1), np.tile(e, (1, k))], axis=2).reshape(-1, 2))
-        return np.concatenate(pairs)
+        return np.concatenate([block_pairs(g.group.elems_np) for g in self.groups])
 
     def node_rotations(self, rot: wp.array, node_sum: wp.array, moving: wp.array | None = None) -> None:
         """Accumulate ``V_e R_e`` of every element into each of its nodes, ``node_sum`` ``(n,)`` (not
@@ -102,9 +98,18 @@ class Elements:
             g.energy(q, out)
 
 
+def block_pairs(elems: np.ndarray) -> np.ndarray:
+    """The node ids ``(a, b)`` each of the ``k^2`` blocks of each element couples, in the order the
+    element models form their blocks (block ``k a + b`` of element ``e`` at ``k^2 e + k a + b``):
+    ``(k^2 count, 2)`` int64, from ``elems`` ``(count, k)``."""
+    e = np.asarray(elems, dtype=np.int64)
+    k = e.shape[1]
+    return np.stack([np.repeat(e, k, axis=1), np.tile(e, (1, k))], axis=2).reshape(-1, 2)
+
+
 def element_model(model) -> Elements:
     """The element models of ``model``'s bodies."""
     return Elements(model)
 
 
-__all__ = ["ELEMENT_MODELS", "Corotational", "Elements", "NeoHookean", "Quadratic", "element_model"]
+__all__ = ["ELEMENT_MODELS", "Corotational", "Elements", "NeoHookean", "Quadratic", "block_pairs", "element_model"]

@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 import warp as wp
 
+from ..elastic import block_pairs
 from .operator import SystemOperator
 from .supernodal import narrow
 
@@ -147,7 +148,7 @@ class Assembly:
             mask = np.ascontiguousarray(free[3 * n0:3 * n1])
             key = (n1 - n0, hashlib.sha1(b"".join(e.tobytes() + b"|" for e in local) + mask.tobytes()).hexdigest())
             if key not in shared:
-                shared[key] = _element_pattern(local, [g.nodes_per_element for g in groups], mask)
+                shared[key] = _element_pattern(local, mask)
             self.patterns.append(shared[key])
         self.value_start = np.cumsum([0] + [p.nnz for p in self.patterns])
         self.nnz = int(self.value_start[-1])
@@ -253,13 +254,13 @@ class Assembly:
         return (lower + lower.T - sp.diags(lower.diagonal())).tocsc()
 
 
-def _element_pattern(local: list[np.ndarray], nodes_per_element: list[int], free: np.ndarray) -> Pattern:
+def _element_pattern(local: list[np.ndarray], free: np.ndarray) -> Pattern:
     """The :class:`Pattern` of one world's element blocks: ``local`` per element group its elements
     ``(count, k)`` (node ids from the world's first), their blocks as :meth:`Elements.blocks` forms
     them; ``free`` ``(3 nodes,)`` bool."""
     rows, cols = [], []
-    for e, k in zip(local, nodes_per_element, strict=True):
-        pairs = np.stack([np.repeat(e, k, axis=1), np.tile(e, (1, k))], axis=2).reshape(-1, 2)
+    for e in local:
+        pairs = block_pairs(e)
         # entry (block, i, j) of the (blocks, 9) array -> (row, col) in the world's matrix
         r = 3 * pairs[:, 0, None, None] + np.arange(3)[None, :, None]
         c = 3 * pairs[:, 1, None, None] + np.arange(3)[None, None, :]
