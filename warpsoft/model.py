@@ -120,6 +120,7 @@ class Model:
                 e0 += m.num_elements
             node_starts.append(n0)
             elem_starts.append(e0)
+        self._body_at = {(b.name, b.world): b for b in self.bodies}  # (name, world) -> its BodyInfo
         self.world_node_start = np.array(node_starts, dtype=np.int32)
         self.world_elem_start = np.array(elem_starts, dtype=np.int32)
         self.rest_np = np.concatenate(nodes)
@@ -283,9 +284,8 @@ class Model:
         return slice(int(self.world_node_start[world]), int(self.world_node_start[world + 1]))
 
     def body_info(self, name: str, world: int = 0) -> BodyInfo:
-        for b in self.bodies:
-            if b.name == name and b.world == world:
-                return b
+        if (name, world) in self._body_at:
+            return self._body_at[name, world]
         raise SceneError(f"model: no body named '{name}' in world {world}")
 
     def state(self) -> State:

@@ -91,23 +91,28 @@ class Rows:
         self.force_columns = wp.array([held.max(initial=0)], dtype=wp.int32, device=d)  # columns in use
 
         # mapped points, kind by kind (a kind's points are contiguous), each located in its elements
-        nodes, weights, point = [], [], 0
+        spans, point = {}, 0  # (lo, hi) elements -> [(first point, points, names)] to locate in them
         for kind in order:
             for p in placed[kind]:
                 pts = kind.points(p.item)
                 if not len(pts):
                     continue
-                lo, hi = kind.point_elements(model, p.world, p.item)
                 names = ([f"effector '{p.item.name}'"] if kind is EffectorRows
                          else [f"{kind.name} '{p.item.name}' point {k}" for k in range(len(pts))])
-                ids, w_ = locate(model.rest_np, model.tets_np[lo:hi], pts, names)
-                nodes.append(ids)
-                weights.append(w_)
+                spans.setdefault(kind.point_elements(model, p.world, p.item), []).append((point, pts, names))
                 p.first_point, p.num_points = point, len(pts)
                 point += len(pts)
         self.num_points = point
-        self.point_nodes = wp.array(np.concatenate(nodes), dtype=wp.vec4i, device=d) if nodes else None
-        self.point_weights = wp.array(np.concatenate(weights), dtype=wp.vec4d, device=d) if nodes else None
+        nodes, weights = np.zeros((point, 4), dtype=np.int32), np.zeros((point, 4))
+        # a body's points at once: one search tree of its elements (1,024 Diamonds on the VM, in
+        # cProfile: 7.7 -> 2.9 s, a tree per cable and effector before)
+        for (lo, hi), items in spans.items():
+            at = np.concatenate([np.arange(first, first + len(pts)) for first, pts, _ in items])
+            nodes[at], weights[at] = locate(model.rest_np, model.tets_np[lo:hi],
+                                            np.concatenate([pts for _, pts, _ in items]),
+                                            [name for _, _, names in items for name in names])
+        self.point_nodes = wp.array(nodes, dtype=wp.vec4i, device=d) if point else None
+        self.point_weights = wp.array(weights, dtype=wp.vec4d, device=d) if point else None
         self.points = wp.zeros(max(point, 1), dtype=wp.vec3d, device=d)
 
         self.kinds, entry, base = [], 0, np.zeros(self.num_rows)

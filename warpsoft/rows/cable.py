@@ -26,8 +26,9 @@ class CableRows(RowKind):
 
     def __init__(self, model, placed, entry_offset):
         super().__init__(model, placed, entry_offset)
+        boxes = {}  # (body, world) -> its elements' boxes, for its cables' checks
         for p in placed:
-            check_pull_point(model, p)
+            check_pull_point(model, p, boxes)
         d = model.device
         counts = np.array([p.num_points for p in placed], dtype=np.int32)
         self.point_offset = placed[0].first_point
@@ -66,26 +67,42 @@ class CableRows(RowKind):
                 for k, p in enumerate(self.placed) if p.world == world}
 
 
-def check_pull_point(model, placed) -> None:
+def check_pull_point(model, placed, boxes: dict | None = None) -> None:
     """A cable is pulled from a point fixed in space. One inside a moving part of its body would
     be passed by the body, and one on the first path point where that point moves leaves the
     pull without a direction: either turns or reverses the command, so both are errors. (A pull
-    point on the body's fixed face is fine: only fixed nodes carry it.)"""
+    point on the body's fixed face is fine: only fixed nodes carry it.) ``boxes``: the bodies'
+    element boxes found so far, ``(body, world) -> (lower, upper)`` ``(m, 3)`` each (m), kept for
+    the body's next cable."""
     cable, info = placed.item, model.body_info(placed.item.body.name, placed.world)
     nodes = model.rest_np
     tets = model.tets_np[info.elem_start:info.elem_start + info.elem_count]
+    body = nodes[info.node_start:info.node_start + info.node_count]
+    lo, hi = body.min(axis=0), body.max(axis=0)  # the body's box (m)
+    size = float((hi - lo).max())
 
     def moves(ids: np.ndarray, weights: np.ndarray) -> bool:  # the point's nodes (weight != 0) not all fixed
         return bool(np.any(model.mask_np[ids[np.abs(weights) > 1e-9]] != 0.0))
 
-    lam = barycentric(nodes, tets, cable.pull_point)
-    inside = np.flatnonzero(lam.min(axis=1) >= -1e-9)
-    if any(moves(tets[e], lam[e]) for e in inside):
+    # only a point in the body's box can be in one of its elements, and only in one whose box holds
+    # it (1,024 Diamonds' 4,096 cables on the VM, in cProfile: 8.3 s when each was solved against
+    # every element of its body, 1.8 s so)
+    p, pad = cable.pull_point, 1e-6 * max(size, 1e-3)
+    near = np.zeros(0, dtype=np.int64)
+    if np.all((lo - pad <= p) & (p <= hi + pad)):
+        boxes = {} if boxes is None else boxes
+        if (info.name, info.world) not in boxes:
+            x = nodes[tets]  # (m, 4, 3) m
+            boxes[info.name, info.world] = x.min(axis=1), x.max(axis=1)
+        low, high = boxes[info.name, info.world]
+        near = np.flatnonzero(np.all((low <= p + pad) & (p - pad <= high), axis=1))
+    lam = barycentric(nodes, tets[near], p)
+    if any(moves(tets[e], w) for e, w in zip(near, lam, strict=True) if w.min() >= -1e-9):
         raise SceneError(f"cable '{cable.name}': its pull point {cable.pull_point.tolist()} m lies inside body "
                          f"'{info.name}' where the body moves; a cable is pulled from a fixed point: put it "
                          "outside the body (behind its base) or in its fixed region")
     first = cable.points[0]
-    if np.linalg.norm(first - cable.pull_point) <= 1e-9 * max(float(np.ptp(nodes[tets.ravel()], axis=0).max()), 1e-3):
+    if np.linalg.norm(first - cable.pull_point) <= 1e-9 * max(size, 1e-3):
         ids, w = locate(nodes, tets, first[None], [f"cable '{cable.name}' point 0"])
         if moves(ids[0], w[0]):
             raise SceneError(f"cable '{cable.name}': its pull point is its first path point "

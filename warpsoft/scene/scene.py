@@ -77,16 +77,15 @@ class Body:
         """Per tetrahedron of the mesh ``(mu, lambda, density)`` in Pa, Pa, kg/m^3, each shape
         ``(m,)``. In a quadratic mesh, the eight of an element share its material, chosen by the
         element's centroid."""
-        m = self.mesh.num_elements
-        mats = [self.material] * m
-        centroids = self._centroids()
-        for region, mat in self.overrides:
-            for e in np.flatnonzero(region(centroids)):
-                mats[e] = mat
-        mu = np.array([mt.lame[0] for mt in mats])
-        lam = np.array([mt.lame[1] for mt in mats])
-        rho = np.array([mt.density for mt in mats])
-        return mu, lam, rho
+        mats = [self.material] + [mat for _, mat in self.overrides]
+        which = np.zeros(self.mesh.num_elements, dtype=np.int64)  # each element's material, in mats
+        if self.overrides:
+            centroids = self._centroids()
+            for k, (region, _) in enumerate(self.overrides, 1):  # a later override wins
+                which[np.asarray(region(centroids), dtype=bool)] = k
+        table = np.array([(*mt.lame, mt.density) for mt in mats])  # (materials, 3)
+        mu, lam, rho = table[which].T
+        return mu.copy(), lam.copy(), rho.copy()
 
 
 @dataclass
