@@ -290,6 +290,33 @@ def test_the_world_by_world_assembly_sums_the_element_blocks_of_the_whole_model(
     assert np.array_equal(asm.values(), values)
 
 
+@pytest.mark.parametrize("k", [4, 10])
+def test_the_pattern_of_node_blocks_is_the_pattern_of_their_entries(k):
+    """Pattern.of_blocks, from the blocks' node pairs, equals the pattern made from every entry of
+    them: the same slots, rows, columns and map from entries, with DOFs fixed along one axis or
+    all three, elements of 4 and 10 nodes (two groups of blocks one after the other), and a block
+    repeated by two elements."""
+    from warpsoft.elastic import block_pairs
+    from warpsoft.linear.pattern import Pattern
+
+    rng = np.random.default_rng(k)
+    nodes = 60
+    elems = np.array([rng.choice(nodes, size=k, replace=False) for _ in range(40)])
+    elems = np.concatenate([rng.permutation(nodes).reshape(-1, k), elems])  # every node in an element
+    elems = np.concatenate([elems, elems[:3], rng.permuted(elems[5:9], axis=1)])
+    pairs = np.concatenate([block_pairs(elems), block_pairs(elems[:7, :4])])
+    free = rng.random(3 * nodes) > 0.15  # some nodes fixed along one axis, a few along all
+    free[3 * nodes - 3:] = False
+    rows = (3 * pairs[:, 0, None, None] + np.arange(3)[:, None]).repeat(3, axis=2).ravel()
+    cols = (3 * pairs[:, 1, None, None] + np.arange(3)[None, :]).repeat(3, axis=1).ravel()
+    whole, blocks = Pattern(rows, cols, free), Pattern.of_blocks(pairs, free)
+    for name in ("free", "renum", "keep", "slot", "indices", "indptr", "columns", "diagonal"):
+        assert np.array_equal(getattr(blocks, name), getattr(whole, name)), name
+    assert blocks.nnz == whole.nnz and blocks.size == whole.size == free.sum()
+    entries = rng.standard_normal(len(rows))
+    assert np.array_equal(blocks.lower_values(entries), whole.lower_values(entries))
+
+
 def test_a_wide_right_hand_side_is_solved_in_runs_of_columns(monkeypatch):
     """CHOLMOD solves a dense right-hand side of more than SOLVE_ENTRIES numbers in runs of
     columns (one whole solve crashed cvxopt on a 20916-DOF identity): the same numbers, and a

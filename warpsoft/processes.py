@@ -41,6 +41,11 @@ def bind_to_parent(parent: int, period: float = PERIOD) -> None:
     threading.Thread(target=_watch, args=(parent, period), daemon=True, name="warpsoft-parent-watch").start()
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity where the system says it; else every core)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
 def release_freed() -> None:
     """Give the memory this process has freed back to the system (glibc's ``malloc_trim``; nothing
     elsewhere). The blocks' programs of a first factorization are freed in arrays of a few MB, which

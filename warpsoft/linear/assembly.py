@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Iterator
-from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -24,7 +23,7 @@ import warp as wp
 
 from ..elastic import block_pairs
 from .operator import SystemOperator
-from .supernodal import narrow
+from .pattern import Pattern, Sparsity
 
 # numbers of a dense right-hand side per CHOLMOD solve: cvxopt's cholmod.solve crashed (a segmentation
 # fault, on the H200's host) on the identity of the PneuNet's 20916 free DOFs (437M numbers, 3.5 GB); runs
@@ -37,68 +36,6 @@ ORDERINGS = ("cholmod", "nested_dissection")  # CholmodFactor's fill-reducing or
 # element blocks formed at a time when the values are assembled world by world (302 MB of mat33d;
 # a world's blocks are formed together however many it has)
 CHUNK_BLOCKS = 1 << 22
-
-
-@dataclass
-class Sparsity:
-    """The lower triangle's CSC pattern alone over ``size`` free DOFs: ``indptr`` ``(size + 1,)``,
-    ``indices`` and ``columns`` ``(nnz,)``, as :class:`Pattern` has them. It is all a factor's
-    analysis reads (:class:`CholmodFactor`, :func:`nested_dissection`), and light to send to a
-    worker process."""
-
-    size: int
-    indptr: np.ndarray
-    indices: np.ndarray
-    columns: np.ndarray
-
-
-class Pattern:
-    """The lower triangle of a symmetric matrix over its free DOFs, compressed by columns, from
-    the (row, col) places of a list of entries (element block numbers, duplicates summed).
-
-    Args:
-        rows, cols: ``(entries,)`` each entry's place among all DOFs.
-        free: ``(dofs,)`` bool, the DOFs kept (the others are fixed: removed from the system).
-
-    Attributes:
-        free: ``(f,)`` ids of the free DOFs among all; ``size`` ``f``; ``renum`` ``(dofs,)`` a DOF's
-            place among the free ones (-1: fixed).
-        indptr, indices: the CSC pattern of the lower triangle, ``(f + 1,)`` and ``(nnz,)``;
-            ``columns`` ``(nnz,)`` each slot's column; ``diagonal`` ``(f,)`` the diagonal's slots.
-        keep, slot: the entries kept (free, lower) and the slot each adds into.
-    """
-
-    def __init__(self, rows: np.ndarray, cols: np.ndarray, free: np.ndarray):
-        self.free = np.flatnonzero(free)
-        self.size = len(self.free)
-        renum = np.full(len(free), -1, dtype=np.int64)
-        renum[self.free] = np.arange(self.size)
-        self.renum = renum
-        r, c = renum[rows], renum[cols]
-        self.keep = np.flatnonzero((r >= 0) & (c >= 0) & (r >= c))  # free, lower triangle
-        key = c[self.keep] * self.size + r[self.keep]  # column-major order = CSC order
-        unique, self.slot = np.unique(key, return_inverse=True)
-        # (kept for every mesh of a batch: in 32 bits where they fit, half the bytes)
-        self.keep, self.slot = narrow(self.keep), narrow(self.slot)
-        self.indices = (unique % self.size).astype(np.int64)
-        col_of = unique // self.size
-        self.indptr = np.searchsorted(col_of, np.arange(self.size + 1)).astype(np.int64)
-        self.columns = col_of.astype(np.int64)
-        self.nnz = len(unique)
-        self.diagonal = self.indptr[:-1]  # the first entry of each lower column is its diagonal
-        assert np.array_equal(self.indices[self.diagonal], np.arange(self.size))
-
-    def sparsity(self) -> Sparsity:
-        """The CSC pattern alone."""
-        return Sparsity(self.size, self.indptr, self.indices, self.columns)
-
-    def lower_values(self, entries: np.ndarray, diagonal: np.ndarray | None = None) -> np.ndarray:
-        """The ``nnz`` values of the lower triangle: the ``entries`` summed into their slots, plus
-        ``diagonal`` ``(dofs,)`` (all DOFs) on the diagonal."""
-        vals = np.bincount(self.slot, weights=entries[self.keep], minlength=self.nnz)
-        if diagonal is not None:
-            vals[self.diagonal] += diagonal[self.free]
-        return vals
 
 
 class Assembly:
@@ -258,16 +195,7 @@ def _element_pattern(local: list[np.ndarray], free: np.ndarray) -> Pattern:
     """The :class:`Pattern` of one world's element blocks: ``local`` per element group its elements
     ``(count, k)`` (node ids from the world's first), their blocks as :meth:`Elements.blocks` forms
     them; ``free`` ``(3 nodes,)`` bool."""
-    rows, cols = [], []
-    for e in local:
-        pairs = block_pairs(e)
-        # entry (block, i, j) of the (blocks, 9) array -> (row, col) in the world's matrix
-        r = 3 * pairs[:, 0, None, None] + np.arange(3)[None, :, None]
-        c = 3 * pairs[:, 1, None, None] + np.arange(3)[None, None, :]
-        r, c = np.broadcast_arrays(r, c)
-        rows.append(r.ravel())
-        cols.append(c.ravel())
-    return Pattern(np.concatenate(rows), np.concatenate(cols), free)
+    return Pattern.of_blocks(np.concatenate([block_pairs(e) for e in local]), free)
 
 
 def nested_dissection(pattern: Pattern | Sparsity, lo: int = 0, hi: int | None = None) -> np.ndarray:

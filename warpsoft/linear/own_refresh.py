@@ -15,11 +15,11 @@ and measurements: ``WORLD_*`` in factors.py), and keeps ``refactorizer``, ``worl
 from __future__ import annotations
 
 import multiprocessing
-import os
 
 import numpy as np
 import warp as wp
 
+from ..processes import usable_cores
 from .refactor import Block, Refactorizer
 
 
@@ -138,8 +138,7 @@ class OwnRefreshes:
         """The workers of the worlds' own refreshes (:data:`WORKERS`, or a core each), their shared
         memory laid out for the blocks that serve one world alone."""
         m = self.op.model
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-        workers = min(self.workers or cores, int(self._own.sum()))
+        workers = min(self.workers or usable_cores(), int(self._own.sum()))
         if "fork" not in multiprocessing.get_all_start_methods():  # (this process does the work)
             workers = 1
         own = [int(b) for b in np.flatnonzero(self._own)]

@@ -57,7 +57,8 @@ import warp as wp
 from threadpoolctl import threadpool_limits
 
 from ..processes import bind_to_parent
-from .assembly import CholmodFactor, Pattern
+from .assembly import CholmodFactor
+from .pattern import Pattern
 from .supernodal import Supernodal
 
 _WORKER_LIMITS = []  # a worker's BLAS thread limit, held for its life
