@@ -71,7 +71,7 @@ class Simulator:
             times fewer numbers than a dense inverse, made in milliseconds instead of seconds,
             for batches of many different meshes; a world's factor is made anew when its CG grows,
             by worker processes beside the steps: :data:`~warpsoft.linear.factors.WORLD_FLOOR`) or
-            "auto" ("blocks" on CUDA for several worlds, "dense" on CUDA for one, "host" on the CPU).
+            "auto" ("factors" on CUDA for several worlds, "dense" on CUDA for one, "host" on the CPU).
         precision: ``pcg`` with a dense inverse: its storage, "float32" (default: half the memory
             and bytes per iteration; the CG itself runs in float64, so the solution meets the
             same tolerance, at the cost of 0-2 more iterations on the reference scenes) or "float64".

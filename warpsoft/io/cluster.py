@@ -85,8 +85,9 @@ def ray_batches(scene_file: str | Path, chunks: list[list[DesignResult]], steps:
         raise SceneError(f"--ray with device {device or 'cuda (Warp default)'}: the Ray cluster has no GPU "
                          f"(resources: {resources})")
     # A GPU task also takes its share of the CPUs: Ray caps a task's threads (OMP_NUM_THREADS) at
-    # its CPUs, and the host side of a batch (LAPACK's inverse of the preconditioner's blocks) is
-    # threaded. (Measured on the 2-GPU H200 host, one thread instead of 32 cost 6 % of the stepping.)
+    # its CPUs, and the host side of a batch (the preconditioner's factorizations) is threaded.
+    # (Measured on the 2-GPU H200 host with the dense blocks, LAPACK's inverses: one thread instead
+    # of 32 cost 6 % of the stepping.)
     cpus = max(1, int(resources.get("CPU", 1) // resources.get("GPU", 1))) if gpu else 1
     task = ray.remote(num_gpus=1 if gpu else 0, num_cpus=cpus, max_retries=0)(_remote_batch)
     source = Path(scene_file).read_text()

@@ -2,25 +2,27 @@
 
 :class:`~warpsoft.linear.blocks.WorldBlocks` keeps a dense inverse per world: ``N_w^2`` numbers,
 read whole at every CG iteration, and inverted on the host by LAPACK (1.6 s for a Diamond on the
-2-core VM). That is what a batch of a few meshes can afford (worlds of one mesh share it), not
-one of many different meshes. Here each world (or group of proportional worlds, as there) keeps
-the sparse Cholesky factor of its rest system instead, CHOLMOD's: 0.1-0.4 M numbers for the
-Diamond's 3048-5157 free DOFs, against 9-27 M. Its two triangular solves run on the device as
-levels of independent rows (:mod:`warpsoft.linear.supernodal`): one launch per level, every
-world's rows of that level in it. A level's launch has a floor that converged worlds do not
-lower (and the last CG iterations run only the slowest designs), so the factors take
-METIS's nested dissection, whose elimination trees are shallow: 11-16 levels each way for a
-sample of 128 of 1024 different Diamonds, against 30-53 with CHOLMOD's own ordering (AMD), for
-1 % more entries (H200, those 1024: P^-1 9.18 -> 7.20 ms, a step's graphs 154.9 -> 129.6 ms).
-In the levels of short rows (a thread a row) the entries lie in slices of 32 rows, interleaved,
-so that a warp reads side by side (P^-1 7.22 -> 6.70 ms for 3 % more entries, in padding).
-The default layout is now panels (:meth:`~warpsoft.linear.supernodal.Supernodal.panels`): a task
-is up to :data:`PANEL_ROWS` rows of a supernode that read the same columns, listed once and read
-once for them, a few lanes a panel sharing its columns (1024 Diamonds on the H200: P^-1 4.90 ->
-3.45 ms, a step 70.9 -> 60.5 ms; docs/performance.md); ``layout="rows"`` keeps a task a row.
-A panel's task holds its world and the world's first row, and when every world runs its lanes
-skip the test of their world (with the operand rows read whole, P^-1 3.39 -> 3.21 ms, a step
-60.5-60.9 -> 58.5 ms).
+2-core VM). That is what a batch of a few meshes can afford (worlds of one mesh share it), not one
+of many different meshes, and even with a few it steps slower: 1024 Diamonds of 4 meshes (4 blocks
+either way) on one H200 took 87.23 ms a step with dense inverses and 44.12 ms with these factors,
+which are therefore the default for several worlds on CUDA. Here each world (or group of
+proportional worlds, as there) keeps the sparse Cholesky factor of its rest system instead,
+CHOLMOD's: 0.1-0.4 M numbers for the Diamond's 3048-5157 free DOFs, against 9-27 M. Its two
+triangular solves run on the device as levels of independent rows
+(:mod:`warpsoft.linear.supernodal`): one launch per level, every world's rows of that level in it. A
+level's launch has a floor that converged worlds do not lower (and the last CG iterations run only
+the slowest designs), so the factors take METIS's nested dissection, whose elimination trees are
+shallow: 11-16 levels each way for a sample of 128 of 1024 different Diamonds, against 30-53 with
+CHOLMOD's own ordering (AMD), for 1 % more entries (H200, those 1024: P^-1 9.18 -> 7.20 ms, a step's
+graphs 154.9 -> 129.6 ms). In the levels of short rows (a thread a row) the entries lie in slices of
+32 rows, interleaved, so that a warp reads side by side (P^-1 7.22 -> 6.70 ms for 3 % more entries,
+in padding). The default layout is now panels
+(:meth:`~warpsoft.linear.supernodal.Supernodal.panels`): a task is up to :data:`PANEL_ROWS` rows of
+a supernode that read the same columns, listed once and read once for them, a few lanes a panel
+sharing its columns (1024 Diamonds on the H200: P^-1 4.90 -> 3.45 ms, a step 70.9 -> 60.5 ms;
+docs/performance.md); ``layout="rows"`` keeps a task a row. A panel's task holds its world and the
+world's first row, and when every world runs its lanes skip the test of their world (with the
+operand rows read whole, P^-1 3.39 -> 3.21 ms, a step 60.5-60.9 -> 58.5 ms).
 
 So ``P^-1 = Q blockdiag(s_w^-1 P_b^T L_b^-T L_b^-1 P_b) Q^T``: the same preconditioner as the
 dense inverse (the rest system's exact inverse, turned by the node rotations), at a fraction of
