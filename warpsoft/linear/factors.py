@@ -238,11 +238,11 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         # in rows (the faster on each: ``_row_load`` in kernels/linear/factors.py)
         self.whole_rows = self.layout == "panels" or not d.is_cuda
         self.world_row = wp.array((3 * m.world_node_start[:-1]).astype(np.int32), dtype=wp.int32, device=d)
-        self.patterns = {}  # mesh -> the lower triangle of its system over its free DOFs
         first = {}  # mesh -> its first world
         for w, key in enumerate(self.mesh_of):
             first.setdefault(key, w)
-        def pattern(key) -> Pattern:
+
+        def pattern(key) -> Pattern:  # the lower triangle of the mesh's system over its free DOFs
             local, nodes = self.meshes[key]
             free = np.zeros(3 * nodes, dtype=bool)
             free[self.local_free[first[key]]] = True
@@ -251,7 +251,7 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         # mesh by mesh in threads: numpy's sorts and gathers run outside the GIL (256 different
         # Diamonds on the 2-core VM: the simulator's construction 2.87 -> 2.38 s with two)
         with ThreadPoolExecutor(usable_cores()) as pool:
-            self.patterns = dict(zip(self.meshes, pool.map(pattern, self.meshes), strict=True))
+            self.patterns = dict(zip(self.meshes, pool.map(pattern, self.meshes), strict=True))  # mesh -> its
         # an entry's column is a place of its factor, which has a place per free DOF
         places = max((p.size for p in self.patterns.values()), default=0)
         self.index_dtype = wp.uint16 if places <= NARROW_PLACES else wp.int32

@@ -26,7 +26,9 @@ class Sparsity:
 
 class Pattern:
     """The lower triangle of a symmetric matrix over its free DOFs, compressed by columns, from
-    the (row, col) places of a list of entries (element block numbers, duplicates summed).
+    the (row, col) places of a list of entries (element block numbers, duplicates summed). The
+    constructor takes entries at any places; the solvers' element blocks come in 3x3 blocks and take
+    :meth:`of_blocks`, which gives the same pattern faster.
 
     Args:
         rows, cols: ``(entries,)`` each entry's place among all DOFs.
