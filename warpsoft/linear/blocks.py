@@ -33,6 +33,7 @@ from warpsoft.kernels.linear import blocks as kernels
 from warpsoft.kernels.linear import warped as rotations
 from warpsoft.kernels.linear.cg import NUM_SCALARS
 
+from ..elastic import block_pairs
 from ..errors import SceneError
 from ..launch import launch
 from .operator import SystemOperator
@@ -338,9 +339,7 @@ def _dense_entries(tets: np.ndarray, nodes: int) -> np.ndarray:
     """For the element blocks of a mesh (``(16 m,)`` 3x3 blocks, block ``4 a + b`` of element ``e``
     coupling its nodes ``a`` and ``b``), the flat index ``3 n`` by ``3 n`` of each number in the
     dense matrix: ``(144 m,)``, in the blocks' order."""
-    a = np.arange(4)
-    t = tets.astype(np.int64)
-    rows = 3 * t[:, a][:, :, None, None, None] + np.arange(3)[None, None, None, :, None]
-    cols = 3 * t[:, a][:, None, :, None, None] + np.arange(3)[None, None, None, None, :]
-    rows, cols = np.broadcast_arrays(rows, cols)
+    pairs = block_pairs(tets)  # (16 m, 2) the nodes each block couples, in the blocks' order
+    rows = 3 * pairs[:, 0, None, None] + np.arange(3)[:, None]  # (16 m, 3, 1): entry (i, j)'s row
+    cols = 3 * pairs[:, 1, None, None] + np.arange(3)[None, :]  # (16 m, 1, 3): its column
     return (rows * (3 * nodes) + cols).ravel()
