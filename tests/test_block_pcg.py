@@ -1,5 +1,6 @@
 """Block CG (``PCG(block=True)``): a world's right-hand sides share one search space."""
 
+import functools
 import warnings
 
 import numpy as np
@@ -141,34 +142,56 @@ def cabled_bar(young_modulus: float) -> ws.Scene:
     return scene
 
 
-@pytest.mark.parametrize("preconditioner", ["blocks", "factors"])
-def test_nearly_equal_columns_in_single_precision_do_not_break_the_block(preconditioner):
-    """Four cables 2 mm apart make a world's five columns nearly dependent. With a float32
-    preconditioner, the rounding of ``Z = P^-1 R`` (~1e-7) once passed for independent directions
-    (a pivot of 1e-12 kept them): CG diverged from the first step and a world's node flew 19 m at
-    the fourth. With the pivot floor of float32 (1e-4), each step takes a few iterations and the
-    bars follow the direct solver's (its factorizations made at every step, as the CG's)."""
-    designs = [1e5 + 125.0 * k for k in range(16)]
-    block = ws.Simulator(ws.finalize([cabled_bar(e) for e in designs]), solver="pcg", block_cg=True,
-                         preconditioner=preconditioner, precision="float32", tolerance=1e-8)
-    direct = ws.Simulator(ws.finalize([cabled_bar(e) for e in designs]), solver="direct", factor_reuse=0.0)
+@functools.cache
+def direct_bars(steps: int) -> list[np.ndarray]:
+    """Positions of :data:`STIFFNESSES`' bars after each of ``steps`` steps, by the direct solver
+    (factorized at every step, as the CG's preconditioners are)."""
+    sim = ws.Simulator(ws.finalize([cabled_bar(e) for e in STIFFNESSES]), solver="direct", factor_reuse=0.0)
+    out = []
+    for _ in range(steps):
+        sim.step()
+        out.append(sim.state.q.numpy().copy())
+    return out
+
+
+STIFFNESSES = [float(e) for e in np.geomspace(5e4, 2e6, 16)]
+
+
+@pytest.mark.parametrize("preconditioner, directions", [("blocks", "float64"), ("factors", "float64"),
+                                                        ("factors", "float32")])
+def test_nearly_equal_columns_in_single_precision_do_not_break_the_block(preconditioner, directions):
+    """Four cables 2 mm apart make a world's five columns nearly dependent; 16 bars from 50 kPa to
+    2 MPa. With a float32 preconditioner (and float32 directions), ``Z = P^-1 R`` carries ~1e-7 of
+    rounding. O'Leary's block CG (``beta = (R^T Z)^-1 R_new^T Z_new``) lost its conjugacy on it:
+    iterations grew to 21 a step, and the float32 factors and blocks met NaN at the 11th step.
+    The breakdown-free form keeps every step within a few iterations of float64 (at most 9 here,
+    float64 at most 8; the bound leaves room for another BLAS's rounding) and the bars on the
+    direct solver's path."""
+    steps = 12
+    block = ws.Simulator(ws.finalize([cabled_bar(e) for e in STIFFNESSES]), solver="pcg", block_cg=True,
+                         preconditioner=preconditioner, precision="float32", operator="assembled",
+                         directions=directions, tolerance=1e-8)
+    assert block.solver.directions == directions
+    want = direct_bars(steps)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # (a ConvergenceWarning fails the test)
-        for _ in range(6):
+        for k in range(steps):
             stats = block.step()
-            direct.step()
-            assert stats.cg_iterations <= 20
-    x, want = block.state.q.numpy(), direct.state.q.numpy()
-    motion = np.abs(want - block.model.rest_np).max()
-    assert motion > 1e-4
-    assert np.abs(x - want).max() < 1e-5 * motion
+            assert stats.converged and stats.cg_iterations <= 15
+            x = block.state.q.numpy()
+            motion = np.abs(want[k] - block.model.rest_np).max()
+            assert np.abs(x - want[k]).max() < 1e-6 * motion
+    assert motion > 1e-3
 
 
 def test_single_precision_directions_meet_the_same_tolerance():
     """The block CG's directions ``P`` and ``Z`` stored in float32 (``directions``, "auto" with a
     float32 factor and the assembled operator): ``X``, ``R`` and ``A P`` stay float64, so four cabled
-    bars of different stiffness take the same iterations as with float64 directions and end at the
-    direct solver's positions as closely. The matrix-free operator takes no float32 column."""
+    bars of different stiffness end at the direct solver's positions as closely as with float64
+    directions, in about as many iterations. The iterations are bounded, not matched: the rounding
+    of float32 directions moves a step's count by one or two, differently on each BLAS and
+    compiler (O'Leary's block CG, before, took 16 where float64 took 6 on one machine). The
+    matrix-free operator takes no float32 column."""
     designs = [cabled_bar(e) for e in (1e5, 2e5, 4e5, 6e5)]
     runs = {}
     for directions in ("float64", "auto"):
@@ -179,7 +202,9 @@ def test_single_precision_directions_meet_the_same_tolerance():
     single = runs["auto"][0].solver
     assert single.directions == "float32" and single.bp.dtype == wp.vec3f and single.bz.dtype == wp.vec3f
     assert runs["float64"][0].solver.bp.dtype == wp.vec3d
-    assert np.abs(runs["auto"][1] - runs["float64"][1]).max() <= 1 and runs["auto"][1].max() > 5
+    single_its, double_its = runs["auto"][1], runs["float64"][1]
+    assert double_its.max() > 3  # (the case iterates)
+    assert single_its.max() <= double_its.max() + 3 and single_its.sum() <= 1.25 * double_its.sum()
     direct = ws.Simulator(ws.finalize(designs), solver="direct", factor_reuse=0.0)
     for _ in range(6):
         direct.step()

@@ -1,4 +1,4 @@
-"""Kernels of the block preconditioned CG (O'Leary's): a world's ``k`` columns share one search space.
+"""Kernels of the block preconditioned CG: a world's ``k`` columns share one search space.
 
 The ``k`` right-hand sides of a world have the same matrix, so each iteration can search along
 every column's direction at once: ``x`` moves by ``P alpha`` and ``r`` by ``A P alpha``, with
@@ -6,18 +6,29 @@ every column's direction at once: ``x`` moves by ``P alpha`` and ``r`` by ``A P 
 own CG finds one at a time, are then found once for all of them (measured on a sagging Diamond:
 19 iterations where its columns needed 37-44 each).
 
-Per world ``w`` and iteration, with ``G_PAP = P^T A P``, ``G_RZ = R^T Z`` (both ``k x k``):
+Per world ``w`` and iteration, with ``Q = A P`` and the ``k x k`` Gram matrices ``G_PAP = P^T Q``,
+``G_PR = P^T R`` and ``G_QZ = Q^T Z``:
 
-    alpha = G_PAP^-1 G_RZ,   X += P alpha,   R -= A P alpha,   Z = M^-1 R,
-    beta = G_RZ^-1 G_RZ_new,  P = Z + P beta.
+    alpha = G_PAP^+ G_PR,   X += P alpha,   R -= Q alpha,   Z = M^-1 R,
+    beta = -G_PAP^+ G_QZ,   P = Z + P beta.
+
+This is the breakdown-free form of block CG (Dubrulle 2001; Ji and Li 2017), not O'Leary's
+``alpha = G_PAP^-1 R^T Z``, ``beta = (R^T Z)^-1 R_new^T Z_new``. The two agree in exact arithmetic
+with a fixed symmetric preconditioner; they part when ``Z`` carries rounding: a float32
+preconditioner or float32 directions (:data:`DIRECTIONS`). O'Leary's ratios then lose the
+conjugacy they assume, and on bars whose cables run 2 mm apart (nearly dependent columns) a
+world's iterations grew from 6 to 16, or met NaN at the 11th step. Here ``alpha`` is the Galerkin
+solution on ``span(P)`` of the residual at hand, so each column's error in the ``A`` norm never
+grows, whatever ``P`` is, and ``beta`` makes the new directions ``A``-conjugate to the old ones
+from the products themselves (the flexible CG's choice for an inexact preconditioner).
 
 Vectors are ``(k, n)`` vec3d as in ``pcg.py``, but for the directions ``P`` and ``Z``, which may
 be vec3f (:data:`DIRECTIONS`); the ``k x k`` matrices of world ``w`` live in ``gram[w, slot]`` and
 ``coef[w, slot]`` (float64), and every sum and product is taken in float64. A world's columns run
 until all of them reach the tolerance; a column with ``b = 0`` is left out of its world's block
-(its solution is 0). The small solves go through a Cholesky factor of the Gram matrix scaled to a unit diagonal,
-pivoting out the directions that depend on the others (:data:`DEPENDENT`): two equal right-hand
-sides then share one direction instead of breaking the factorization.
+(its solution is 0). ``G_PAP^+`` is applied through a Cholesky factor of ``G_PAP`` scaled to a unit
+diagonal, pivoting out the directions that depend on the others (:data:`DEPENDENT`): two equal
+right-hand sides then share one direction instead of breaking the factorization.
 """
 
 import warp as wp
@@ -26,20 +37,19 @@ from .cg import B2, DONE, ITS, R2, R2_LAST
 from .pcg import ITERATIONS, NODES_PER_BLOCK, NONFINITE
 
 MAX_COLUMNS = 16  # a block holds at most this many right-hand sides (k^2 / 2 reductions an iteration)
-G_PAP = wp.constant(0)  # gram[w, G_PAP]: P^T A P
-G_RZ = wp.constant(1)  # gram[w, G_RZ]: R^T Z of the current iterate
-G_RZ_NEW = wp.constant(2)  # gram[w, G_RZ_NEW]: accumulator for the next R^T Z
+G_PAP = wp.constant(0)  # gram[w, G_PAP]: P^T A P (symmetric: its upper half is summed)
+G_PR = wp.constant(1)  # gram[w, G_PR]: P^T R
+G_QZ = wp.constant(2)  # gram[w, G_QZ]: (A P)^T Z
 NUM_GRAMS = 3
 ALPHA = wp.constant(0)  # coef[w, ALPHA]
 BETA = wp.constant(1)  # coef[w, BETA]
-# a scaled Cholesky pivot below this drops its direction, by the precision the preconditioner
-# works in: the pivot is the squared sine of the angle between a direction and the span of
-# those before it, and float32 products carry ~1e-7 of rounding. On 16 bars whose four cables
-# run 2 mm apart (nearly equal columns), float32 blocks or factors diverged from step 1 with
-# 1e-12 (its columns' rounding taken for directions: beta up to 1e16) and met NaN at step 2
-# with 1e-6; with 1e-4 they take 2-9 iterations a step (float64 with 1e-12: 1-12)
-# (tests/test_block_pcg.py)
-DEPENDENT = {"float64": 1e-12, "float32": 1e-4}
+# a scaled Cholesky pivot of G_PAP below this drops its direction (the pivot is the squared sine
+# of the A-angle between a direction and the span of those before it): a direction that only
+# repeats the others, to round-off, adds nothing to the search. The breakdown-free form needs no
+# looser floor for float32 directions or preconditioners: on bars whose four cables run 2 mm
+# apart, float32 factors take at most one iteration more than float64 with pivots of 1e-14 to
+# 1e-10 alike (tests/test_block_pcg.py)
+DEPENDENT = 1e-12
 # the storage of the directions P and Z: float32 halves their bytes and costs no accuracy when the
 # preconditioner works in float32 anyway. X and R stay float64, and A P is the float64 product of
 # the P stored, so X moves by P alpha and R by A P alpha with the same P: R stays the residual of X
@@ -63,59 +73,101 @@ def running(wdone: wp.array(dtype=wp.int32), w: int) -> bool:
 _grams = {}
 
 
-def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d):
-    """``out[w, slot, a, b] += sum_i u[a, i] . (mask v[b, i])`` (``u``, ``v`` of ``u_vector`` and
-    ``v_vector``, summed in float64) over the pairs ``a <= b`` of
-    the ``k = columns`` columns (:func:`load` mirrors the other half), in the running worlds,
-    between live columns. A block of threads per world (:func:`launch_worlds`, ``world_start``
-    its first node, ``(worlds + 1,)``): each thread reads its nodes' ``2 k`` vectors once and adds
-    the ``k (k + 1) / 2`` products; the block then sums each product once (a launch per pair read
-    2 vectors a pair, ``k + 1`` times the bytes: for the 5 columns of 1024 Diamonds on the H200,
-    395 us a Gram matrix, the step's mean; 178-210 with a thread a node over blocks of 256 nodes,
-    which summed their 15 products 6 times a world; 63 us now). A converged world's block returns
-    at once.
-    Cached per ``k`` (a compile-time constant: the sums live in registers) and vector types."""
-    key = (columns, u_vector, v_vector)
+def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d, w_vector=None):
+    """``out[w, slot_v, a, b] += sum_i u[a, i] . (mask v[b, i])`` over the pairs ``a <= b`` (``v`` given:
+    a symmetric product, :func:`load` mirrors the other half) and ``out[w, slot_w, a, b] += sum_i
+    u[a, i] . (mask w[b, i])`` over all pairs (``w_vector`` given: a general product), of the ``k =
+    columns`` columns, summed in float64, in the running worlds, between live columns. Either
+    product may be left out (its vector type None; its array is then not read). ``u`` is read once
+    for both: ``P^T A P`` and ``P^T R`` take one pass over ``P``.
+
+    A block of threads per world (:func:`launch_worlds`, ``world_start`` its first node, ``(worlds +
+    1,)``): each thread reads its nodes' vectors once and adds the products; the block then sums
+    each product once (a launch per pair read 2 vectors a pair, ``k + 1`` times the bytes). A
+    converged world's block returns at once. Cached per ``k`` (a compile-time constant: the sums
+    live in registers) and vector types."""
+    key = (columns, u_vector, v_vector, w_vector)
     if key in _grams:
         return _grams[key]
     K = columns
-    P = K * (K + 1) // 2
-    Sums = wp.types.vector(length=P, dtype=wp.float64)
+    SYM, FULL = v_vector is not None, w_vector is not None
+    NS = K * (K + 1) // 2 if SYM else 1
+    NF = K * K if FULL else 1
+    SymSums = wp.types.vector(length=NS, dtype=wp.float64)
+    FullSums = wp.types.vector(length=NF, dtype=wp.float64)
     Vs = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
+    v_type = v_vector if SYM else wp.vec3d
+    w_type = w_vector if FULL else wp.vec3d
+
+    @wp.func
+    def masked(m: wp.vec3d, scal: wp.array3d(dtype=wp.float64), w: int, vec: wp.array2d(dtype=v_type), i: int) -> Vs:
+        """The live columns of ``vec`` at node ``i``, masked, as rows of a ``k x 3`` matrix."""
+        out = Vs()
+        for b in range(K):
+            if live(scal, b, w):
+                vb = wp.cw_mul(m, wp.vec3d(vec[b, i]))
+                out[b, 0] = vb[0]
+                out[b, 1] = vb[1]
+                out[b, 2] = vb[2]
+        return out
+
+    @wp.func
+    def masked_w(m: wp.vec3d, scal: wp.array3d(dtype=wp.float64), w: int, vec: wp.array2d(dtype=w_type), i: int) -> Vs:
+        """As :func:`masked`, for the general product's array."""
+        out = Vs()
+        for b in range(K):
+            if live(scal, b, w):
+                vb = wp.cw_mul(m, wp.vec3d(vec[b, i]))
+                out[b, 0] = vb[0]
+                out[b, 1] = vb[1]
+                out[b, 2] = vb[2]
+        return out
 
     @wp.kernel(module="unique")
-    def gram_pairs(u: wp.array2d(dtype=u_vector), v: wp.array2d(dtype=v_vector), mask: wp.array(dtype=wp.vec3d),
-                   world_start: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
-                   wdone: wp.array(dtype=wp.int32), slot: int, out: wp.array4d(dtype=wp.float64)):
+    def gram_pairs(u: wp.array2d(dtype=u_vector), v: wp.array2d(dtype=v_type), wv: wp.array2d(dtype=w_type),
+                   mask: wp.array(dtype=wp.vec3d), world_start: wp.array(dtype=wp.int32),
+                   scal: wp.array3d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), slot_v: int, slot_w: int,
+                   out: wp.array4d(dtype=wp.float64)):
         w, lane = wp.tid()
         if running(wdone, w):  # (the same for the block's threads)
-            s = Sums()
+            s = SymSums()
+            f = FullSums()
             i = world_start[w] + lane
             while i < world_start[w + 1]:
                 m = mask[i]
                 vs = Vs()
-                for b in range(K):
-                    if live(scal, b, w):
-                        vb = wp.cw_mul(m, wp.vec3d(v[b, i]))
-                        vs[b, 0] = vb[0]
-                        vs[b, 1] = vb[1]
-                        vs[b, 2] = vb[2]
+                ws = Vs()
+                if wp.static(SYM):
+                    vs = masked(m, scal, w, v, i)
+                if wp.static(FULL):
+                    ws = masked_w(m, scal, w, wv, i)
                 q = wp.int32(0)
                 for a in range(K):
                     ua = wp.vec3d()
                     if live(scal, a, w):
                         ua = wp.vec3d(u[a, i])
-                    for b in range(a, K):
-                        s[q] = s[q] + ua[0] * vs[b, 0] + ua[1] * vs[b, 1] + ua[2] * vs[b, 2]
-                        q += 1
+                    if wp.static(SYM):
+                        for b in range(a, K):
+                            s[q] = s[q] + ua[0] * vs[b, 0] + ua[1] * vs[b, 1] + ua[2] * vs[b, 2]
+                            q += 1
+                    if wp.static(FULL):
+                        for b in range(K):
+                            f[a * K + b] = f[a * K + b] + ua[0] * ws[b, 0] + ua[1] * ws[b, 1] + ua[2] * ws[b, 2]
                 i += wp.block_dim()
-            q = wp.int32(0)
-            for a in range(K):
-                for b in range(a, K):
-                    total = wp.tile_sum(wp.tile(s[q]))
-                    if lane == 0:
-                        out[w, slot, a, b] = out[w, slot, a, b] + total[0]
-                    q += 1
+            if wp.static(SYM):
+                q = wp.int32(0)
+                for a in range(K):
+                    for b in range(a, K):
+                        total = wp.tile_sum(wp.tile(s[q]))
+                        if lane == 0:
+                            out[w, slot_v, a, b] = out[w, slot_v, a, b] + total[0]
+                        q += 1
+            if wp.static(FULL):
+                for a in range(K):
+                    for b in range(K):
+                        total = wp.tile_sum(wp.tile(f[a * K + b]))
+                        if lane == 0:
+                            out[w, slot_w, a, b] = out[w, slot_w, a, b] + total[0]
 
     _grams[key] = gram_pairs
     return gram_pairs
@@ -283,6 +335,15 @@ def small_kernels(columns: int):
         return m
 
     @wp.func
+    def load_full(g: wp.array4d(dtype=wp.float64), w: int, slot: int) -> Small:
+        """``g[w, slot]`` (every entry filled) as a local matrix."""
+        m = Small()
+        for a in range(K):
+            for b in range(K):
+                m[a, b] = g[w, slot, a, b]
+        return m
+
+    @wp.func
     def solve_small(g: Small, rhs: Small, dependent: wp.float64) -> Small:
         """``G^-1 rhs`` for the symmetric positive semi-definite ``G = g`` (``k x k`` local
         matrices, this thread's alone). Cholesky of ``D^-1/2 G D^-1/2`` (``D`` its diagonal); a
@@ -356,22 +417,22 @@ def small_kernels(columns: int):
     @wp.kernel(module="unique", module_options=options, enable_backward=False)
     def block_alpha(g: wp.array4d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), dependent: wp.float64,
                     coef: wp.array4d(dtype=wp.float64), active: wp.array(dtype=wp.int32)):
-        """One thread per world: ``alpha = G_PAP^-1 G_RZ``; clears the loop flag, which
+        """One thread per world: ``alpha = G_PAP^+ G_PR``; clears the loop flag, which
         :func:`block_scalars` sets again while a world still has to run."""
         w = wp.tid()
         if w == 0:
             active[0] = 0
         if not running(wdone, w):
             return
-        store(solve_small(load(g, w, G_PAP), load(g, w, G_RZ), dependent), coef, w, ALPHA)
+        store(solve_small(load(g, w, G_PAP), load_full(g, w, G_PR), dependent), coef, w, ALPHA)
 
     @wp.kernel(module="unique", module_options=options, enable_backward=False)
     def block_scalars(scal: wp.array3d(dtype=wp.float64), g: wp.array4d(dtype=wp.float64), tolerance: wp.float64,
                       max_iterations: int, advance: int, hold: wp.array(dtype=wp.float64),
                       dependent: wp.float64, wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64),
                       info: wp.array(dtype=wp.int32), active: wp.array(dtype=wp.int32)):
-        """One thread per world, after an iteration (``advance = 1``: ``beta = G_RZ^-1 G_RZ_new``, roll
-        the accumulators over, count it) or after the start (``advance = 0``). A world whose live
+        """One thread per world, after an iteration (``advance = 1``: ``beta = -G_PAP^+ G_QZ``, clear
+        the accumulators, count it) or after the start (``advance = 0``). A world whose live
         columns all have ``|r| <= tolerance |b|`` is done, and all its columns are marked done (the
         products skip them); one with iterations left and a column above sets ``active``; a
         non-finite value stops it and raises ``info[NONFINITE]``. ``hold[w] = 0`` (``hold`` of
@@ -394,13 +455,13 @@ def small_kernels(columns: int):
             return
         finite = wp.int32(1)
         if advance != 0:
-            beta = solve_small(load(g, w, G_RZ), load(g, w, G_RZ_NEW), dependent)
+            beta = -solve_small(load(g, w, G_PAP), load_full(g, w, G_QZ), dependent)
             store(beta, coef, w, BETA)
             for a in range(K):
                 for b in range(K):
-                    g[w, G_RZ, a, b] = g[w, G_RZ_NEW, a, b]
-                    g[w, G_RZ_NEW, a, b] = wp.float64(0.0)
                     g[w, G_PAP, a, b] = wp.float64(0.0)
+                    g[w, G_PR, a, b] = wp.float64(0.0)
+                    g[w, G_QZ, a, b] = wp.float64(0.0)
                     if not wp.isfinite(beta[a, b]) or not wp.isfinite(coef[w, ALPHA, a, b]):
                         finite = 0
         converged = wp.int32(1)

@@ -58,7 +58,7 @@ class PCG:
         tolerance: relative residual ``|r| / |b|`` every column must reach.
         max_iterations: cap; reaching it is reported, not hidden.
         graph: on CUDA, capture the whole solve once per pair of buffers and replay it.
-        block: a world's right-hand sides share one search space (block CG, O'Leary's:
+        block: a world's right-hand sides share one search space (block CG, breakdown-free:
             ``kernels/linear/block_pcg.py``) when there are at most ``MAX_COLUMNS`` of them and
             all are solved (not bounded); each column then stops with its world, when all of
             the world's columns reached the tolerance. False: each column its own CG.
@@ -102,10 +102,6 @@ class PCG:
             self.coef = wp.zeros((worlds, 2, k, k), dtype=wp.float64, device=m.device)
             self.wdone = wp.zeros(worlds, dtype=wp.int32, device=m.device)
             self.world_start = wp.array(m.world_node_start, dtype=wp.int32, device=m.device)  # (worlds + 1,)
-            # the scaled pivot below which a block direction is dropped, by the precision of Z = P^-1 R
-            # (:data:`~warpsoft.kernels.linear.block_pcg.DEPENDENT`)
-            single = getattr(preconditioner, "dtype", wp.float64) == wp.float32
-            self.dependent = blockk.DEPENDENT["float32" if single else "float64"]
         self.directions = self._directions(directions, operator, preconditioner)
         self.bp, self.bz = self.p, self.z
         if self.directions == "float32":
@@ -271,35 +267,38 @@ class PCG:
         self.precond.apply(self.r, self.bz)
         launch(blockk.block_begin_kernel(self.bz.dtype), (k, n), inputs=[self.r, self.bz, x, self.bp, m.node_world,
                                                                           self.scal], device=d)
-        self._gram(self.r, self.bz, blockk.G_RZ)
         wp.capture_while(self.active, self._block_iteration, x=x)
 
     def _block_iteration(self, x: wp.array) -> None:
-        """One block iteration: ``A P`` and ``P^T A P``, ``alpha``, ``X`` and ``R``, ``Z = P^-1 R`` and
-        ``R^T Z``, ``beta`` and the stop test, ``P``."""
+        """One block iteration: ``A P``, ``P^T A P`` and ``P^T R``, ``alpha``, ``X`` and ``R``, ``Z = M^-1 R``
+        and ``(A P)^T Z``, ``beta`` and the stop test, ``P``."""
         m, d = self.op.model, self.op.model.device
         k, n = x.shape
         p, z = self.bp, self.bz
         self.op.apply(p, self.ap, self.scal)  # the worlds done are skipped, here and below
-        self._gram(p, self.ap, blockk.G_PAP)
-        launch(blockk.small_kernels(k)[0], m.num_worlds, inputs=[self.gram, self.wdone, self.dependent],
+        self._gram(p, self.ap, self.r)  # P^T A P and P^T R, one pass over P
+        launch(blockk.small_kernels(k)[0], m.num_worlds, inputs=[self.gram, self.wdone, blockk.DEPENDENT],
                outputs=[self.coef, self.active], device=d)
         blockk.launch_worlds(blockk.block_update_kernel(k, p.dtype), m.num_worlds,
                              [x, self.r, p, self.ap, m.mask, self.world_start, self.scal, self.wdone, self.coef], d)
         self.precond.apply(self.r, z)
-        self._gram(self.r, z, blockk.G_RZ_NEW)
+        self._gram(self.ap, None, z)  # (A P)^T Z
         self._block_scalars(1)
         launch(blockk.block_direction_kernel(k, p.dtype), n, inputs=[z, p, m.node_world, self.scal, self.wdone,
                                                                      self.coef], device=d)
 
-    def _gram(self, u: wp.array, v: wp.array, slot: int) -> None:
+    def _gram(self, u: wp.array, v: wp.array | None, w: wp.array) -> None:
+        """``G_PAP += u^T v`` (with ``v``: ``P^T A P``, symmetric) and ``G_PR += u^T w`` (``P^T R``), or
+        without ``v``, ``G_QZ += u^T w`` (``(A P)^T Z``)."""
         m = self.op.model
-        blockk.launch_worlds(blockk.gram_kernel(u.shape[0], u.dtype, v.dtype), m.num_worlds,
-                             [u, v, m.mask, self.world_start, self.scal, self.wdone, slot, self.gram], m.device)
+        kernel = blockk.gram_kernel(u.shape[0], u.dtype, None if v is None else v.dtype, w.dtype)
+        slot = blockk.G_PR if v is not None else blockk.G_QZ
+        blockk.launch_worlds(kernel, m.num_worlds, [u, self.ap if v is None else v, w, m.mask, self.world_start,
+                                                    self.scal, self.wdone, blockk.G_PAP, slot, self.gram], m.device)
 
     def _block_scalars(self, advance: int) -> None:
         launch(blockk.small_kernels(self.r.shape[0])[1], self.op.model.num_worlds,
-               inputs=[self.scal, self.gram, self.tolerance, self.max_iterations, advance, self.held, self.dependent],
+               inputs=[self.scal, self.gram, self.tolerance, self.max_iterations, advance, self.held, blockk.DEPENDENT],
                outputs=[self.wdone, self.coef, self.info, self.active],
                device=self.op.model.device)
 
