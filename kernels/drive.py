@@ -2,6 +2,10 @@
 
 import warp as wp
 
+from . import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 
 @wp.kernel
 def prescribe(ids: wp.array(dtype=wp.int32), target: wp.array(dtype=wp.vec3d), axes: wp.array(dtype=wp.vec3d),

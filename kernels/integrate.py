@@ -2,6 +2,10 @@
 
 import warp as wp
 
+from . import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 
 @wp.kernel
 def kinetic_energy(v: wp.array(dtype=wp.vec3d), mass: wp.array(dtype=wp.float64),

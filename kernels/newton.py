@@ -15,7 +15,10 @@ usual right-hand side. The nonlinear residual adds the rows' forces, ``R = r + s
 
 import warp as wp
 
+from . import OPTIONS
 from .linear.pcg import block_add, block_world, node_add
+
+wp.set_module_options(OPTIONS)
 
 SLOPE = wp.constant(0)  # sums[0, w, SLOPE]: R . e, e the iteration's correction
 NUM_SUMS = 1

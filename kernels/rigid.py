@@ -10,6 +10,10 @@ body is ``(j_lin, j_ang)``: ``delta`` changes by ``j_lin . d_lin + j_ang . d_ang
 
 import warp as wp
 
+from . import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 
 @wp.func
 def world_inverse_inertia(r: wp.quatd, inertia: wp.mat33d):

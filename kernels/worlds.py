@@ -13,6 +13,10 @@ from typing import Any
 
 import warp as wp
 
+from . import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 
 @wp.func
 def still(moving: wp.array(dtype=wp.int32), w: int) -> bool:

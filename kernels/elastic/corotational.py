@@ -14,9 +14,12 @@ Conventions (all kernels, float64):
 
 import warp as wp
 
+from .. import OPTIONS
 from ..linear.cg import column_done
 from ..worlds import still
 from .geometry import edge_matrix, listed, polar_rotation, shape_gradient
+
+wp.set_module_options(OPTIONS)
 
 
 @wp.func

@@ -3,6 +3,10 @@ rotation, lumped mass. Conventions as in :mod:`corotational`."""
 
 import warp as wp
 
+from .. import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 
 @wp.func
 def listed(elements: wp.array(dtype=wp.int32), i: int) -> int:

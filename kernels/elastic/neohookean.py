@@ -32,9 +32,12 @@ whole.
 
 import warp as wp
 
+from .. import OPTIONS
 from ..linear.cg import column_done
 from ..worlds import still
 from .geometry import edge_matrix, listed, shape_gradient
+
+wp.set_module_options(OPTIONS)
 
 
 @wp.struct

@@ -17,13 +17,14 @@ Conventions (all kernels, float64):
 
 import warp as wp
 
+from .. import OPTIONS
 from ..linear.cg import column_done
 from ..worlds import still
 from .corotational import hooke, stiffness_block
 from .geometry import listed, polar_rotation, shape_gradient
 
 # loops stay loops: unrolled, the nested loops over ten nodes and four points took minutes to compile
-wp.set_module_options({"max_unroll": 0})
+wp.set_module_options(OPTIONS | {"max_unroll": 0})
 
 vec10i = wp.types.vector(length=10, dtype=wp.int32)
 

@@ -19,7 +19,10 @@ atomic additions per column.
 
 import warp as wp
 
+from .. import OPTIONS
 from .cg import column_done
+
+wp.set_module_options(OPTIONS)
 
 _kernels = {}
 
@@ -52,7 +55,7 @@ def block_product(columns: int, vector=wp.vec3d):
     sums = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
     flags = wp.types.vector(length=K, dtype=wp.int32)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def assembled_product(x: wp.array2d(dtype=vector), chunk_start: wp.array(dtype=wp.int32),
                           chunk_slots: wp.array(dtype=wp.int32), chunk_rows: int,
                           column: wp.array(dtype=wp.int32), values: wp.array(dtype=wp.mat33d),

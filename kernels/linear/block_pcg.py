@@ -33,8 +33,11 @@ right-hand sides then share one direction instead of breaking the factorization.
 
 import warp as wp
 
+from .. import OPTIONS
 from .cg import B2, DONE, ITS, R2, R2_LAST
 from .pcg import ITERATIONS, NODES_PER_BLOCK, NONFINITE
+
+wp.set_module_options(OPTIONS)
 
 MAX_COLUMNS = 16  # a block holds at most this many right-hand sides (k^2 / 2 reductions an iteration)
 G_PAP = wp.constant(0)  # gram[w, G_PAP]: P^T A P (symmetric: its upper half is summed)
@@ -70,6 +73,10 @@ def running(wdone: wp.array(dtype=wp.int32), w: int) -> bool:
     return wdone[w] == 0
 
 
+CHUNK = 8  # sums added up by one block reduction (a tile of vectors of this length)
+Chunk = wp.types.vector(length=CHUNK, dtype=wp.float64)
+
+
 _grams = {}
 
 
@@ -83,18 +90,19 @@ def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d, w_vector=Non
 
     A block of threads per world (:func:`launch_worlds`, ``world_start`` its first node, ``(worlds +
     1,)``): each thread reads its nodes' vectors once and adds the products; the block then sums
-    each product once (a launch per pair read 2 vectors a pair, ``k + 1`` times the bytes). A
-    converged world's block returns at once. Cached per ``k`` (a compile-time constant: the sums
-    live in registers) and vector types."""
+    them :data:`CHUNK` at a time, one block reduction of a vector each (a launch per pair read 2
+    vectors a pair, ``k + 1`` times the bytes; a reduction per product took 65 where 9 now do for
+    5 columns). A converged world's block returns at once. Cached per ``k`` (a compile-time
+    constant: the sums live in registers) and vector types."""
     key = (columns, u_vector, v_vector, w_vector)
     if key in _grams:
         return _grams[key]
     K = columns
     SYM, FULL = v_vector is not None, w_vector is not None
-    NS = K * (K + 1) // 2 if SYM else 1
-    NF = K * K if FULL else 1
-    SymSums = wp.types.vector(length=NS, dtype=wp.float64)
-    FullSums = wp.types.vector(length=NF, dtype=wp.float64)
+    NS = K * (K + 1) // 2 if SYM else 0
+    NF = K * K if FULL else 0
+    CHUNKS = (NS + NF + CHUNK - 1) // CHUNK
+    Sums = wp.types.vector(length=CHUNKS * CHUNK, dtype=wp.float64)  # the symmetric product's, then the general's
     Vs = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
     v_type = v_vector if SYM else wp.vec3d
     w_type = w_vector if FULL else wp.vec3d
@@ -123,15 +131,14 @@ def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d, w_vector=Non
                 out[b, 2] = vb[2]
         return out
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def gram_pairs(u: wp.array2d(dtype=u_vector), v: wp.array2d(dtype=v_type), wv: wp.array2d(dtype=w_type),
                    mask: wp.array(dtype=wp.vec3d), world_start: wp.array(dtype=wp.int32),
                    scal: wp.array3d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), slot_v: int, slot_w: int,
                    out: wp.array4d(dtype=wp.float64)):
         w, lane = wp.tid()
         if running(wdone, w):  # (the same for the block's threads)
-            s = SymSums()
-            f = FullSums()
+            s = Sums()
             i = world_start[w] + lane
             while i < world_start[w + 1]:
                 m = mask[i]
@@ -152,22 +159,30 @@ def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d, w_vector=Non
                             q += 1
                     if wp.static(FULL):
                         for b in range(K):
-                            f[a * K + b] = f[a * K + b] + ua[0] * ws[b, 0] + ua[1] * ws[b, 1] + ua[2] * ws[b, 2]
+                            f = NS + a * K + b
+                            s[f] = s[f] + ua[0] * ws[b, 0] + ua[1] * ws[b, 1] + ua[2] * ws[b, 2]
                 i += wp.block_dim()
-            if wp.static(SYM):
+            total = Sums()  # (lane 0's)
+            for c in range(CHUNKS):  # CHUNK sums a block reduction
+                part = Chunk()
+                for j in range(CHUNK):
+                    part[j] = s[c * CHUNK + j]
+                t = wp.tile_sum(wp.tile(part, preserve_type=True))
+                if lane == 0:
+                    r = t[0]
+                    for j in range(CHUNK):
+                        total[c * CHUNK + j] = r[j]
+            if lane == 0:
                 q = wp.int32(0)
-                for a in range(K):
-                    for b in range(a, K):
-                        total = wp.tile_sum(wp.tile(s[q]))
-                        if lane == 0:
-                            out[w, slot_v, a, b] = out[w, slot_v, a, b] + total[0]
-                        q += 1
-            if wp.static(FULL):
-                for a in range(K):
-                    for b in range(K):
-                        total = wp.tile_sum(wp.tile(f[a * K + b]))
-                        if lane == 0:
-                            out[w, slot_w, a, b] = out[w, slot_w, a, b] + total[0]
+                if wp.static(SYM):
+                    for a in range(K):
+                        for b in range(a, K):
+                            out[w, slot_v, a, b] = out[w, slot_v, a, b] + total[q]
+                            q += 1
+                if wp.static(FULL):
+                    for a in range(K):
+                        for b in range(K):
+                            out[w, slot_w, a, b] = out[w, slot_w, a, b] + total[NS + a * K + b]
 
     _grams[key] = gram_pairs
     return gram_pairs
@@ -182,16 +197,18 @@ def block_update_kernel(columns: int, vector=wp.vec3d):
     ``r.r`` into ``scal[a, w, R2]``. A block of threads per world (:func:`launch_worlds`), each
     thread reading its nodes' ``2 k`` vectors of ``p`` and ``A p`` once (a thread per column and
     node read them ``k`` times: on the H200, 1024 Diamonds' 5 columns, 431 us a launch; 304-360
-    with a thread a node over blocks of 256 nodes; 240 now). ``p`` holds ``vector`` (vec3d or vec3f),
+    with a thread a node over blocks of 256 nodes; 240 with a reduction a column), the block sums
+    :data:`CHUNK` columns' ``r.r`` a reduction. ``p`` holds ``vector`` (vec3d or vec3f),
     the rest vec3d. Cached per ``k = columns`` and ``vector``."""
     key = (columns, vector)
     if key in _updates:
         return _updates[key]
     K = columns
     Vs = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
-    Rs = wp.types.vector(length=K, dtype=wp.float64)
+    CHUNKS = (K + CHUNK - 1) // CHUNK
+    Rs = wp.types.vector(length=CHUNKS * CHUNK, dtype=wp.float64)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def block_update(x: wp.array2d(dtype=wp.vec3d), r: wp.array2d(dtype=wp.vec3d), p: wp.array2d(dtype=vector),
                      ap: wp.array2d(dtype=wp.vec3d), mask: wp.array(dtype=wp.vec3d),
                      world_start: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
@@ -224,10 +241,17 @@ def block_update_kernel(columns: int, vector=wp.vec3d):
                         r[a, i] = ri
                         rr[a] = rr[a] + wp.dot(ri, ri)
                 i += wp.block_dim()
-            for a in range(K):
-                total = wp.tile_sum(wp.tile(rr[a]))
+            for c in range(CHUNKS):  # CHUNK columns a block reduction
+                part = Chunk()
+                for j in range(CHUNK):
+                    part[j] = rr[c * CHUNK + j]
+                t = wp.tile_sum(wp.tile(part, preserve_type=True))
                 if lane == 0:
-                    scal[a, w, R2] = scal[a, w, R2] + total[0]
+                    sums = t[0]
+                    for j in range(CHUNK):
+                        if c * CHUNK + j < K:
+                            a = c * CHUNK + j
+                            scal[a, w, R2] = scal[a, w, R2] + sums[j]
 
     _updates[key] = block_update
     return block_update
@@ -249,7 +273,7 @@ def block_direction_kernel(columns: int, vector=wp.vec3d):
     K = columns
     Vs = wp.types.matrix(shape=(K, 3), dtype=wp.float64)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def block_direction(z: wp.array2d(dtype=vector), p: wp.array2d(dtype=vector),
                         world: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
                         wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64)):
@@ -285,7 +309,7 @@ def block_begin_kernel(vector=wp.vec3d):
     if vector in _begins:
         return _begins[vector]
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def block_begin(r: wp.array2d(dtype=wp.vec3d), z: wp.array2d(dtype=vector), x: wp.array2d(dtype=wp.vec3d),
                     p: wp.array2d(dtype=vector), world: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64)):
         c, i = wp.tid()
@@ -301,12 +325,14 @@ def block_begin_kernel(vector=wp.vec3d):
 
 
 _small = {}
-# a block's k x k loops unroll up to this many columns (then its small matrices live in registers);
-# larger blocks loop (compile time grows as k^3 unrolled)
+# on CUDA, a block's k x k loops unroll up to this many columns (then its small matrices live in
+# registers); larger blocks loop (compile time grows as k^3 unrolled). On the CPU they stay loops:
+# unrolled, the two kernels of 8 columns took 31 s to compile there, against 6 s as loops, and a
+# thread's small matrices cost no registers
 SMALL_UNROLL = 8
 
 
-def small_kernels(columns: int):
+def small_kernels(columns: int, cuda: bool = True):
     """``(block_alpha, block_scalars)`` for ``k = columns`` columns: a thread per world, whose
     ``k x k`` matrices (the Gram matrices, ``alpha``, ``beta`` and the Cholesky factor) are local
     matrices of ``k x k``, every loop over ``k`` (unrolled up to :data:`SMALL_UNROLL` columns, so
@@ -314,9 +340,11 @@ def small_kernels(columns: int):
     column at hand runs over all ``k`` and tests it). For 1024 Diamonds' 5 columns on the H200,
     ``block_alpha`` and ``block_scalars`` took 146 and 178 us a launch with matrices of
     :data:`MAX_COLUMNS`, 48 and 70 with ``k x k`` ones and loops bounded at run time (the matrices
-    in local memory), 24 and 47 unrolled. Cached per ``columns``."""
-    if columns in _small:
-        return _small[columns]
+    in local memory), 24 and 47 unrolled. ``cuda``: for a CUDA device (unrolled), else the CPU
+    (loops). Cached per ``columns`` and ``cuda``."""
+    key = (columns, bool(cuda))
+    if key in _small:
+        return _small[key]
     K = columns
     Small = wp.types.matrix(shape=(K, K), dtype=wp.float64)  # a world's k x k, local
     Diagonal = wp.types.vector(length=K, dtype=wp.float64)
@@ -412,9 +440,9 @@ def small_kernels(columns: int):
             for b in range(K):
                 coef[w, slot, a, b] = m[a, b]
 
-    options = {"max_unroll": SMALL_UNROLL}
+    options = OPTIONS | {"max_unroll": SMALL_UNROLL if cuda else 1}
 
-    @wp.kernel(module="unique", module_options=options, enable_backward=False)
+    @wp.kernel(module="unique", module_options=options)
     def block_alpha(g: wp.array4d(dtype=wp.float64), wdone: wp.array(dtype=wp.int32), dependent: wp.float64,
                     coef: wp.array4d(dtype=wp.float64), active: wp.array(dtype=wp.int32)):
         """One thread per world: ``alpha = G_PAP^+ G_PR``; clears the loop flag, which
@@ -426,7 +454,7 @@ def small_kernels(columns: int):
             return
         store(solve_small(load(g, w, G_PAP), load_full(g, w, G_PR), dependent), coef, w, ALPHA)
 
-    @wp.kernel(module="unique", module_options=options, enable_backward=False)
+    @wp.kernel(module="unique", module_options=options)
     def block_scalars(scal: wp.array3d(dtype=wp.float64), g: wp.array4d(dtype=wp.float64), tolerance: wp.float64,
                       max_iterations: int, advance: int, hold: wp.array(dtype=wp.float64),
                       dependent: wp.float64, wdone: wp.array(dtype=wp.int32), coef: wp.array4d(dtype=wp.float64),
@@ -491,8 +519,8 @@ def small_kernels(columns: int):
         else:
             active[0] = 1
 
-    _small[columns] = (block_alpha, block_scalars)
-    return _small[columns]
+    _small[key] = (block_alpha, block_scalars)
+    return _small[key]
 
 
 def launch_worlds(kernel, worlds: int, inputs: list, device) -> None:

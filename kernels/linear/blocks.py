@@ -29,8 +29,11 @@ the product's cost follows the worlds that have not converged, in whatever order
 
 import warp as wp
 
+from .. import OPTIONS
 from .cg import DONE
 from .warped import wide_type
+
+wp.set_module_options(OPTIONS)
 
 _kernels = {}
 
@@ -64,7 +67,7 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
     sums = wp.types.matrix(shape=(G * W, K), dtype=dtype)
     rows = wp.types.vector(length=G, dtype=wp.int32)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def blocks_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
                          mask: wp.array(dtype=wp.vec3d), node_row: wp.array(dtype=wp.int32),
                          node_world: wp.array(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
@@ -87,7 +90,7 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
             U[row + 1, c] = dtype(v[1])
             U[row + 2, c] = dtype(v[2])
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def blocks_partial_product(A: wp.array2d(dtype=wide), U: wp.array2d(dtype=dtype),
                                row_chunk: wp.array(dtype=wp.int32), chunk_first: wp.array(dtype=wp.int32),
                                chunk_worlds: wp.array2d(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
@@ -130,7 +133,7 @@ def block_kernels(columns: int, dtype, segments: int, unroll: int, width: int, g
                     for v in range(W):
                         P[s, c, u0[g] + W * i + v] = acc[g * W + v, c]
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def blocks_rotate_out(P: wp.array3d(dtype=dtype), Z: wp.array2d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
                           mask: wp.array(dtype=wp.vec3d), node_row: wp.array(dtype=wp.int32),
                           node_world: wp.array(dtype=wp.int32), first_row: wp.array(dtype=wp.int32),
@@ -188,7 +191,7 @@ def tiled_kernel(dtype, tile_m: int, tile_n: int, tile_k: int):
         return _kernels[key]
     TM, TN, TK = tile_m, tile_n, tile_k
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def blocks_tiled_product(A: wp.array2d(dtype=dtype), G: wp.array2d(dtype=dtype), tiles: wp.array(dtype=wp.vec4i),
                              region_size: wp.array(dtype=wp.int32), region_col: wp.array(dtype=wp.int32),
                              count: wp.array(dtype=wp.int32), Z: wp.array2d(dtype=dtype)):

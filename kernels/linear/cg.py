@@ -11,6 +11,10 @@ projected with it, so fixed DOFs of the unknowns stay at zero.
 
 import warp as wp
 
+from .. import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 RZ = wp.constant(0)  # r . z of the current iterate
 RZ_NEW = wp.constant(1)  # accumulator for the next r . z
 PAP = wp.constant(2)  # accumulator for p . A p

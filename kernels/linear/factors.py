@@ -18,7 +18,10 @@ have all converged (``scal[c, w, DONE]``) skips its rows: its result is no longe
 
 import warp as wp
 
+from .. import OPTIONS
 from .cg import DONE
+
+wp.set_module_options(OPTIONS)
 
 _kernels = {}
 
@@ -38,7 +41,7 @@ def rotate_in_scaled(dtype, columns: int, frame=wp.mat33d):
     K = columns
     running, _ = _row_funcs(columns, dtype)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def factor_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=frame),
                          mask: wp.array(dtype=wp.vec3d), node_world: wp.array(dtype=wp.int32),
                          place: wp.array(dtype=wp.int32), inv_scale: wp.array(dtype=dtype),
@@ -72,7 +75,7 @@ def rotate_out(dtype, columns: int, vector=wp.vec3d, frame=wp.mat33d):
     K = columns
     running, _ = _row_funcs(columns, dtype)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def factor_rotate_out(x: wp.array2d(dtype=dtype), q_rot: wp.array(dtype=frame),
                           mask: wp.array(dtype=wp.vec3d), node_world: wp.array(dtype=wp.int32),
                           place: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
@@ -236,7 +239,7 @@ def level_kernel(columns: int, dtype, step: int = 1, unroll: int = UNROLL, whole
     running, entries = _row_funcs(columns, dtype, unroll, whole, (index, value))
     task_at = _task_at(compact)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def factor_level(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=index),
                      val: wp.array(dtype=value), node_world: wp.array(dtype=wp.int32),
                      world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
@@ -320,7 +323,7 @@ def level_kernel_lanes(columns: int, dtype, lanes: int, unroll: int = UNROLL, wh
     lane_sum = _lane_sum(columns, dtype, lanes)
     task_at = _task_at(compact)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def factor_level_lanes(tasks: wp.array(dtype=wp.vec4i), first: int, col: wp.array(dtype=index),
                            val: wp.array(dtype=value), node_world: wp.array(dtype=wp.int32),
                            world_row: wp.array(dtype=wp.int32), scal: wp.array3d(dtype=wp.float64),
@@ -497,7 +500,7 @@ def panel_kernel(columns: int, dtype, rows: int, lanes: int, unroll: int = PANEL
     task_at = _task_at(compact)
     columns_of = _panel_columns(columns, dtype, rows, unroll, whole, (index, value))
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def factor_panel(tasks: wp.array(dtype=panel_task), first: int, col: wp.array(dtype=index),
                      val: wp.array(dtype=value), scal: wp.array3d(dtype=wp.float64), inp: wp.array2d(dtype=dtype),
                      out: wp.array2d(dtype=dtype), count: wp.array(dtype=wp.int32), worlds: wp.array(dtype=wp.int32),
@@ -562,7 +565,7 @@ def wide_panel_kernel(columns: int, dtype, rows: int, unroll: int = PANEL_UNROLL
     task_at = _task_at(True)
     columns_of = _panel_columns(columns, dtype, rows, unroll, whole, (index, value))
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def factor_wide_panel(tasks: wp.array(dtype=panel_task), first: int, col: wp.array(dtype=index),
                           val: wp.array(dtype=value), inp: wp.array2d(dtype=dtype), out: wp.array2d(dtype=dtype),
                           count: wp.array(dtype=wp.int32), worlds: wp.array(dtype=wp.int32),
@@ -598,7 +601,7 @@ def running_worlds(columns: int):
         return _kernels[key]
     running, _ = _row_funcs(columns, wp.float32)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def factor_running(scal: wp.array3d(dtype=wp.float64), count: wp.array(dtype=wp.int32),
                        worlds: wp.array(dtype=wp.int32)):
         w = wp.tid()

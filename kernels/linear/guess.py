@@ -2,6 +2,10 @@
 
 import warp as wp
 
+from .. import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 
 @wp.kernel
 def extrapolate(held: wp.array(dtype=wp.int32), world: wp.array(dtype=wp.int32), steps: wp.array(dtype=wp.int32),

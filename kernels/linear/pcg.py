@@ -16,7 +16,10 @@ slot; the others add node by node.
 
 import warp as wp
 
+from .. import OPTIONS
 from .cg import B2, DONE, ITS, PAP, R2, R2_LAST, RZ, RZ_NEW
+
+wp.set_module_options(OPTIONS)
 
 NODES_PER_BLOCK = wp.constant(256)
 ITERATIONS = wp.constant(0)  # info[ITERATIONS]: iterations done by the current solve (the most of any column)

@@ -14,8 +14,11 @@ Vectors are ``(k, n)`` arrays of vec3d (column, node); the dense path works on f
 
 import warp as wp
 
+from .. import OPTIONS
 from ..elastic.geometry import polar_rotation
 from ..worlds import still
+
+wp.set_module_options(OPTIONS)
 
 
 @wp.kernel
@@ -73,7 +76,7 @@ def relative_node_rotations(kind=wp.mat33d):
     if kind in _relative:
         return _relative[kind]
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def relative(node_sum: wp.array(dtype=wp.mat33d), frame: wp.array(dtype=wp.mat33d),
                  node_world: wp.array(dtype=wp.int32), moving: wp.array(dtype=wp.int32),
                  node_rot: wp.array(dtype=wp.mat33d), q_rot: wp.array(dtype=kind)):
@@ -122,7 +125,7 @@ def flat_rotations(dtype):
     if dtype in _flat:
         return _flat[dtype]
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def rotate_in_flat(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
                        mask: wp.array(dtype=wp.vec3d), u: wp.array2d(dtype=dtype)):
         c, i = wp.tid()
@@ -130,7 +133,7 @@ def flat_rotations(dtype):
         for a in range(3):
             u[3 * i + a, c] = dtype(v[a])
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def rotate_out_flat(y: wp.array2d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
                         mask: wp.array(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d)):
         c, i = wp.tid()
@@ -157,7 +160,7 @@ def dense_product(columns: int, dtype, tile_m: int = 32, tile_k: int = 64, split
         return _dense_products[key]
     TM, TK, TN, S = tile_m, tile_k, columns, splits
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def product(A: wp.array2d(dtype=dtype), U: wp.array2d(dtype=dtype), Y: wp.array2d(dtype=dtype)):
         i, s = wp.tid()
         acc = wp.tile_zeros(shape=(TM, TN), dtype=dtype)
@@ -213,7 +216,7 @@ def stream_kernels(columns: int, dtype, segments: int = 32, unroll: int = 4, wid
     wide = wide_type(W, dtype)
     sums = wp.types.matrix(shape=(W, K), dtype=dtype)
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def stream_rotate_in(r: wp.array2d(dtype=wp.vec3d), q_rot: wp.array(dtype=wp.mat33d),
                          mask: wp.array(dtype=wp.vec3d), U: wp.array2d(dtype=dtype)):
         c, i = wp.tid()
@@ -222,7 +225,7 @@ def stream_kernels(columns: int, dtype, segments: int = 32, unroll: int = 4, wid
         U[3 * i + 1, c] = dtype(v[1])
         U[3 * i + 2, c] = dtype(v[2])
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def stream_partial_product(A: wp.array2d(dtype=wide), U: wp.array2d(dtype=dtype), segment: int,
                                P: wp.array3d(dtype=dtype)):
         s, i = wp.tid()
@@ -241,7 +244,7 @@ def stream_kernels(columns: int, dtype, segments: int = 32, unroll: int = 4, wid
             for w in range(W):
                 P[s, c, W * i + w] = acc[w, c]  # coalesced: neighbouring threads, neighbouring rows
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def stream_rotate_out(P: wp.array3d(dtype=dtype), q_rot: wp.array(dtype=wp.mat33d),
                           mask: wp.array(dtype=wp.vec3d), z: wp.array2d(dtype=wp.vec3d)):
         c, i = wp.tid()

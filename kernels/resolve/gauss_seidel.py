@@ -13,6 +13,10 @@ rows (attachments, after its actuators) are one block solved exactly (:func:`bil
 
 import warp as wp
 
+from .. import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 FORCE_MODE = wp.constant(0)  # inputs[FORCE_MODE, r]: 1 for a force-driven row, 0 for displacement
 VALUE = wp.constant(1)  # imposed delta (m, m^3) or lambda (N, Pa)
 LO = wp.constant(2)  # force bounds

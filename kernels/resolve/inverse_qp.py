@@ -18,7 +18,10 @@ constraint is one-sided ``n_i . x >= b_i``: constraint ``4 k + t`` is ``x_k >= l
 
 import warp as wp
 
+from .. import OPTIONS
 from .gauss_seidel import HI, LO, bounds_this_step
+
+wp.set_module_options(OPTIONS)
 
 OPTIMAL = wp.constant(0)  # result[w, STATUS]
 EMPTY_BOUNDS = wp.constant(1)  # some row has dmin > dmax or lo > hi (result[w, DETAIL]: its index)
@@ -286,7 +289,7 @@ def qp_kernels(size: int):
         return wp.min(wp.max(v, lo), hi)
 
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def inverse_qp(
         W: wp.array2d(dtype=wp.float64),
         delta_free: wp.array(dtype=wp.float64),
@@ -363,7 +366,7 @@ def qp_kernels(size: int):
                 lam[s + i] = clamp(lam[s + i], lo[i], hi[i])
 
 
-    @wp.kernel(module="unique")
+    @wp.kernel(module="unique", module_options=OPTIONS)
     def dense_qp(P: wp.array3d(dtype=wp.float64), q: wp.array2d(dtype=wp.float64), G: wp.array3d(dtype=wp.float64),
                  bounds: wp.array3d(dtype=wp.float64), n: int, max_iterations: int, x_out: wp.array2d(dtype=wp.float64),
                  status_out: wp.array(dtype=wp.int32)):

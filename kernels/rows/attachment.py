@@ -2,6 +2,10 @@
 
 import warp as wp
 
+from .. import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 
 @wp.kernel
 def attachment_rows(

@@ -2,7 +2,10 @@
 
 import warp as wp
 
+from .. import OPTIONS
 from .common import write_point_entries
+
+wp.set_module_options(OPTIONS)
 
 EPS_LENGTH = wp.constant(wp.float64(1e-12))  # m: a shorter segment has no direction (no NaN)
 

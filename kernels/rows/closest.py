@@ -2,6 +2,10 @@
 
 import warp as wp
 
+from .. import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 
 @wp.func
 def triangle_nearest(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d):

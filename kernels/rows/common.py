@@ -3,6 +3,10 @@ entries ``(h_row[k], h_node[k], h_coef[k])``: row id, node id, 3-vector coeffici
 
 import warp as wp
 
+from .. import OPTIONS
+
+wp.set_module_options(OPTIONS)
+
 
 @wp.func
 def write_point_entries(

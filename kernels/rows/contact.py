@@ -16,9 +16,12 @@ row is measured from the triangle's nearest point and has entries on its three n
 
 import warp as wp
 
+from .. import OPTIONS
 from .closest import triangle_closest, triangle_nearest
 from .rigid_surface import rigid_nearest
 from .self_contact import self_gap, self_nearest, triangle_point
+
+wp.set_module_options(OPTIONS)
 
 FLOOR = wp.constant(0)
 BALL = wp.constant(1)

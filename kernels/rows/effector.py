@@ -2,7 +2,10 @@
 
 import warp as wp
 
+from .. import OPTIONS
 from .common import write_point_entries
+
+wp.set_module_options(OPTIONS)
 
 
 @wp.kernel

@@ -12,7 +12,10 @@ the triangle's nodes; the forces are equal and opposite.
 
 import warp as wp
 
+from .. import OPTIONS
 from .self_contact import CORNER, may_touch, search_box
+
+wp.set_module_options(OPTIONS)
 
 
 @wp.func

@@ -10,7 +10,10 @@ refitted to the nodes before each detection.
 
 import warp as wp
 
+from .. import OPTIONS
 from .closest import triangle_nearest
+
+wp.set_module_options(OPTIONS)
 
 CORNER = wp.constant(0.01)  # a nearest point with a weight above 1 - CORNER is at that corner (node to node)
 

@@ -277,7 +277,7 @@ class PCG:
         p, z = self.bp, self.bz
         self.op.apply(p, self.ap, self.scal)  # the worlds done are skipped, here and below
         self._gram(p, self.ap, self.r)  # P^T A P and P^T R, one pass over P
-        launch(blockk.small_kernels(k)[0], m.num_worlds, inputs=[self.gram, self.wdone, blockk.DEPENDENT],
+        launch(blockk.small_kernels(k, d.is_cuda)[0], m.num_worlds, inputs=[self.gram, self.wdone, blockk.DEPENDENT],
                outputs=[self.coef, self.active], device=d)
         blockk.launch_worlds(blockk.block_update_kernel(k, p.dtype), m.num_worlds,
                              [x, self.r, p, self.ap, m.mask, self.world_start, self.scal, self.wdone, self.coef], d)
@@ -297,7 +297,7 @@ class PCG:
                                                     self.scal, self.wdone, blockk.G_PAP, slot, self.gram], m.device)
 
     def _block_scalars(self, advance: int) -> None:
-        launch(blockk.small_kernels(self.r.shape[0])[1], self.op.model.num_worlds,
+        launch(blockk.small_kernels(self.r.shape[0], self.op.model.device.is_cuda)[1], self.op.model.num_worlds,
                inputs=[self.scal, self.gram, self.tolerance, self.max_iterations, advance, self.held, blockk.DEPENDENT],
                outputs=[self.wdone, self.coef, self.info, self.active],
                device=self.op.model.device)
