@@ -33,6 +33,7 @@ def pick(rows, **match):
     return [r for r in rows if all(r[k] == str(v) for k, v in match.items())]
 
 
+@pytest.mark.slow
 def test_quick_writes_the_table_plots_and_summary(quick):
     out, rows = quick
     for name in ("accuracy.png", "figure8.png", "summary.md"):
@@ -42,6 +43,7 @@ def test_quick_writes_the_table_plots_and_summary(quick):
     assert "the cheapest setting within 5 % is quadratic" in text
 
 
+@pytest.mark.slow
 def test_quadratic_elements_are_within_5_percent_of_timoshenko_where_linear_ones_lock(quick):
     _, rows = quick
     quad = pick(rows, study="cantilever", element="quadratic", solver="direct")
@@ -71,6 +73,7 @@ def test_the_richardson_reference_beats_the_finest_mesh_and_bounds_its_error():
     assert 0.5 < finest["order"] < 2.5
 
 
+@pytest.mark.slow
 def test_figure8_force_drive_misses_more_and_reproduces_the_motion_on_the_finest_mesh(quick):
     _, rows = quick
     disp = sorted(pick(rows, study="figure8_warpsoft", drive="displacement", element="corotational"),
@@ -81,6 +84,7 @@ def test_figure8_force_drive_misses_more_and_reproduces_the_motion_on_the_finest
     assert float(force[-1]["error"]) == pytest.approx(0.0, abs=1e-3)
 
 
+@pytest.mark.slow
 def test_the_trapezoid_follows_the_falling_beam_closer_and_both_converge(quick):
     _, rows = quick
     err = {(r["integrator"], float(r["dt"])): float(r["error"]) for r in pick(rows, study="swing")}
@@ -91,6 +95,7 @@ def test_the_trapezoid_follows_the_falling_beam_closer_and_both_converge(quick):
     assert np.isfinite(list(err.values())).all()
 
 
+@pytest.mark.slow
 def test_figure8_cables_pull_points_whose_stiffness_falls_with_the_mesh(quick):
     """A cable fastened at one point loads the body by a point force, whose displacement has no
     finite limit in 3D elasticity: the finer the mesh around the point, the less tension the same

@@ -33,6 +33,7 @@ def released(integrator: str, q: np.ndarray, mesh_size: float, **options) -> ws.
     return sim
 
 
+@pytest.mark.slow
 def test_the_trapezoid_keeps_the_energy_of_a_swinging_neo_hookean_cantilever():
     """Released from a large bend, 200 steps of 2 ms (two thirds of its first period): the
     total energy stays within 1 % of where it began at every step with the trapezoid, while

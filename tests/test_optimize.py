@@ -100,6 +100,7 @@ def test_failed_designs_are_failed_trials_with_their_reason(beam, tmp_path, caps
     assert "gives no metric 'sag' (it gives: deflection)" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_ray_runs_the_same_sweep_and_a_study(beam, tmp_path):
     """Batches as Ray tasks (a Ray instance on this machine): the same table as in this process,
     and a study's trials run the same way."""

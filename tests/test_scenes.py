@@ -33,6 +33,7 @@ def test_finger_cable_curls_the_finger_up(scene_module):
     assert sim.probe_positions()["tip"][2] > z0 + 0.005  # the cable runs near the top: the finger curls up
 
 
+@pytest.mark.slow
 def test_pneunet_bends_toward_its_floor_and_settles_at_constant_pressure(scene_module):
     scene = scene_module("scenes/pneunet.py").build(ramp_time=0.1, dt=0.02)  # 10-node elements at 7 mm
     sim = ws.Simulator(scene, solver="direct")

@@ -120,6 +120,7 @@ def test_friction_holds_the_upper_piece_below_coulombs_threshold(angle, mu, slid
     assert stats.worlds[0].friction_force <= mu * stats.worlds[0].contact_force * (1 + 1e-9)
 
 
+@pytest.mark.slow
 def test_the_pneunet_chambers_meet_instead_of_passing_through(scene_module):
     """At 60 kPa the pneunet's chambers bulge across the 2 mm gaps between them. Without
     self-contact their walls pass through each other by about a millimetre; with it, no node of
