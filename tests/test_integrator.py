@@ -112,3 +112,47 @@ def test_bad_integrators_are_refused():
         ws.Simulator(scene)
     with pytest.raises(ws.SceneError, match="has integrator = 'trapezoidal'"):
         ws.finalize([cable_bar(False), cable_bar(False, "trapezoidal")], "cpu")
+
+
+def spinning_cube(dt: float = 5e-4) -> ws.Scene:
+    """A free 2 cm cube of 1 MPa rubber in zero gravity, nothing fixed, no damping."""
+    scene = ws.Scene("spin", gravity=(0, 0, 0), dt=dt)
+    scene.add_body("cube", ws.box_grid((-0.01, -0.01, -0.01), (0.02, 0.02, 0.02), (2, 2, 2)),
+                   ws.Material(1e6, 0.45, 1000.0))
+    return scene
+
+
+def angular_momentum(sim: ws.Simulator) -> np.ndarray:
+    """Total angular momentum (kg m^2/s, ``(3,)``) about the centre of mass."""
+    m, q, v = sim.model.mass_np, sim.state.q.numpy(), sim.state.v.numpy()
+    c = (m[:, None] * q).sum(axis=0) / m.sum()
+    return (m[:, None] * np.cross(q - c, v)).sum(axis=0)
+
+
+@pytest.mark.parametrize("options", [{"solver": "direct"}, {"solver": "pcg"},
+                                     {"solver": "pcg", "preconditioner": "dense"},
+                                     {"solver": "pcg", "preconditioner": "blocks"},
+                                     {"solver": "pcg", "preconditioner": "factors"}, {"solver": "jacobi"}],
+                         ids=lambda o: "-".join(o.values()))
+def test_a_free_spinning_cube_keeps_its_angular_momentum_at_the_defaults(options):
+    """Only internal forces act: angular momentum is conserved but for implicit Euler's own
+    dissipation of the centrifugal stretch's vibration (measured 1e-6 of it over these 100 steps
+    of 0.5 ms). A factorization kept across steps (``factor_reuse=0.005``, the direct solver's
+    default until 2026-11-28) drained it: 0.81 of it left after 100 steps, 0.41 after 500, the
+    Newton residual being measured with the kept tangent the cube had turned away from. Every
+    solver and preconditioner at its defaults keeps the vector to 1e-4 of its length; the kept
+    factorization stays available, opt-in, and still drains it."""
+    def run(**extra):
+        sim = ws.Simulator(spinning_cube(), device="cpu", **options, **extra)
+        x = sim.model.rest_np
+        sim.state.v.assign(wp.array(np.cross([0.0, 0.0, 20.0], x - x.mean(axis=0)), dtype=wp.vec3d, device="cpu"))
+        start = angular_momentum(sim)
+        for _ in range(100):
+            stats = sim.step()
+            assert stats.converged
+        end = angular_momentum(sim)
+        return np.linalg.norm(end - start) / np.linalg.norm(start)
+
+    assert run() < 1e-4  # (the vector: the lumped masses' axes are not the spin's)
+    if options["solver"] == "direct":
+        assert run(factor_reuse=0.005) > 0.05

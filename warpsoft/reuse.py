@@ -1,5 +1,7 @@
 """When a world may solve a step with the direct solver's factorization of an earlier
-linearization (``factor_reuse``): a modified Newton step, judged world by world.
+linearization (``factor_reuse``, opt-in: off by default): a modified Newton step, judged world by
+world. Its error is not bounded by the Newton tolerance, since the residual is measured with the
+kept tangent: a body turning away from it loses angular momentum unseen.
 
 A world keeps its factorization for a step when its step before converged in its first
 iteration, without a line search, leaving a nonlinear residual at most ``factor_reuse`` (the
@@ -20,7 +22,6 @@ from __future__ import annotations
 
 import numpy as np
 
-FACTOR_REUSE = 0.005  # the direct solver's default threshold (``Simulator(factor_reuse=None)``)
 MARGIN_CUT = 8.0  # a failed try divides the world's margin by this
 MARGIN_FLOOR = 1.0 / 64  # the least margin
 

@@ -25,7 +25,7 @@ from .readback import Readback
 from .resolve import GaussSeidel, kinematic_jacobian
 from .resolve.contact_set import ContactSet
 from .resolve.inverse_device import NMAX, DeviceInverse
-from .reuse import FACTOR_REUSE, FactorReuse
+from .reuse import FactorReuse
 from .rigid import RigidBodies
 from .rows import Rows
 from .scene import Scene
@@ -97,21 +97,18 @@ class Simulator:
             (:mod:`warpsoft.resolve.contact_set`). With ``direct`` on the CPU, ``W`` is formed
             between them alone; elsewhere ``W`` holds every contact and only the sweeps shrink.
             False resolves every contact in contact distance (the same solution, for comparison).
-        factor_reuse: ``direct`` only: a world may solve a step with the factorization of an
-            earlier linearization (a modified Newton step) when its step before converged in one
-            iteration, without a line search, leaving a nonlinear residual at most this (the
+        factor_reuse: ``direct`` only, opt-in: a world may solve a step with the factorization of
+            an earlier linearization (a modified Newton step) when its step before converged in
+            one iteration, without a line search, leaving a nonlinear residual at most this (the
             measure of ``newton_tolerance``; see :mod:`warpsoft.reuse`). Such a step must end
             within this residual too, or it iterates on a fresh factorization, and the world then
             asks more of its steps before it tries again; an iteration after a step's first always
             factorizes. Each world decides on its own history (one factor per world), so it steps
-            in a batch as it does alone. None (default): :data:`~warpsoft.reuse.FACTOR_REUSE` for
-            dynamic steps with ``direct``; 0 (a factorization at every linearization: the reference)
-            for quasi-static ones, whose kept tangent misses the equilibrium by up to the residual
-            (a bent cantilever's second step: 5.6e-4 of its deflection against 3.1e-7), and with
-            the other solvers. Measured in docs/performance.md (CPU VM): the Grasper's step 5.37 ->
-            4.01 ms at the same distance from a converged run; the Finger, the Diamond, the Trunk
-            and the Octoleg take 1.01-1.02 times their Newton iterations; the PneuNet ends 0.23 %
-            of its motion from a converged run, against 0.12 %.
+            in a batch as it does alone. 0 (default): a factorization at every linearization.
+            Off by default because its error is not bounded by the Newton tolerance: the residual
+            is measured with the kept tangent, which a spinning body turns away from, so a free
+            cube spinning at 20 rad/s kept 0.41 of its angular momentum after 500 steps of 0.5 ms
+            with 0.005, against 0.999999 without.
         share_tolerance: ``pcg`` with ``preconditioner="blocks"`` or ``"factors"``: worlds of one mesh and supports
             share a dense inverse when their systems differ from multiples of each other by at most
             this (the largest entry's difference, relative). The default shares exact multiples only
@@ -148,7 +145,7 @@ class Simulator:
                  timing: bool = True, check_every: int | None = None, graphs: bool = True,
                  factorization: str = "cholmod", preconditioner: str = "auto", precision: str = "float32",
                  qp: str = "auto", newton_iterations: int = 10, newton_tolerance: float | None = None,
-                 line_search: int = 4, lazy_contacts: bool = True, factor_reuse: float | None = None,
+                 line_search: int = 4, lazy_contacts: bool = True, factor_reuse: float = 0.0,
                  share_tolerance: float = 1e-10, block_cg: bool | None = None, operator: str = "auto",
                  directions: str = "auto"):
         if solver not in SOLVERS:
@@ -164,7 +161,7 @@ class Simulator:
         if not isinstance(warm_start, (bool, str)) or warm_start not in WARM_STARTS:
             raise SceneError(f"Simulator: warm_start must be 'extrapolate', 'last', 'none', True or False, "
                              f"got {warm_start!r}")
-        if factor_reuse is not None and not (0.0 <= float(factor_reuse) < 1.0):
+        if not (0.0 <= float(factor_reuse) < 1.0):
             raise SceneError(f"Simulator: factor_reuse must lie in [0, 1), got {factor_reuse!r}")
         if not (0.0 <= float(share_tolerance) < 1.0):
             raise SceneError(f"Simulator: share_tolerance must lie in [0, 1), got {share_tolerance!r}")
@@ -175,8 +172,7 @@ class Simulator:
         self.model = scene if isinstance(scene, Model) else Model(scene, device)
         m, d = self.model, self.model.device
         self.solver_name, self.warm_start, self.timing = choose(solver, d), WARM_STARTS[warm_start], bool(timing)
-        self.factor_reuse = (float(factor_reuse) if factor_reuse is not None
-                             else FACTOR_REUSE if self.solver_name == "direct" and not m.static else 0.0)
+        self.factor_reuse = float(factor_reuse)
         if self.factor_reuse and self.solver_name != "direct":
             raise SceneError(f"Simulator: factor_reuse keeps the direct solver's factorization; solver "
                              f"{self.solver_name!r} has none (its preconditioner refreshes itself)")
