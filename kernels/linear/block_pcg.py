@@ -31,6 +31,8 @@ diagonal, pivoting out the directions that depend on the others (:data:`DEPENDEN
 right-hand sides then share one direction instead of breaking the factorization.
 """
 
+from typing import Any
+
 import warp as wp
 
 from .. import OPTIONS
@@ -91,8 +93,8 @@ def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d, w_vector=Non
     A block of threads per world (:func:`launch_worlds`, ``world_start`` its first node, ``(worlds +
     1,)``): each thread reads its nodes' vectors once and adds the products; the block then sums
     them :data:`CHUNK` at a time, one block reduction of a vector each (a launch per pair read 2
-    vectors a pair, ``k + 1`` times the bytes; a reduction per product took 65 where 9 now do for
-    5 columns). A converged world's block returns at once. Cached per ``k`` (a compile-time
+    vectors a pair, ``k + 1`` times the bytes; a reduction a sum took 65 reductions an iteration
+    for 5 columns, where 9 now do). A converged world's block returns at once. Cached per ``k`` (a compile-time
     constant: the sums live in registers) and vector types."""
     key = (columns, u_vector, v_vector, w_vector)
     if key in _grams:
@@ -108,20 +110,9 @@ def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d, w_vector=Non
     w_type = w_vector if FULL else wp.vec3d
 
     @wp.func
-    def masked(m: wp.vec3d, scal: wp.array3d(dtype=wp.float64), w: int, vec: wp.array2d(dtype=v_type), i: int) -> Vs:
-        """The live columns of ``vec`` at node ``i``, masked, as rows of a ``k x 3`` matrix."""
-        out = Vs()
-        for b in range(K):
-            if live(scal, b, w):
-                vb = wp.cw_mul(m, wp.vec3d(vec[b, i]))
-                out[b, 0] = vb[0]
-                out[b, 1] = vb[1]
-                out[b, 2] = vb[2]
-        return out
-
-    @wp.func
-    def masked_w(m: wp.vec3d, scal: wp.array3d(dtype=wp.float64), w: int, vec: wp.array2d(dtype=w_type), i: int) -> Vs:
-        """As :func:`masked`, for the general product's array."""
+    def masked(m: wp.vec3d, scal: wp.array3d(dtype=wp.float64), w: int, vec: wp.array2d(dtype=Any), i: int) -> Vs:
+        """The live columns of ``vec`` (vec3d or vec3f) at node ``i``, masked, as rows of a ``k x 3``
+        matrix."""
         out = Vs()
         for b in range(K):
             if live(scal, b, w):
@@ -147,7 +138,7 @@ def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d, w_vector=Non
                 if wp.static(SYM):
                     vs = masked(m, scal, w, v, i)
                 if wp.static(FULL):
-                    ws = masked_w(m, scal, w, wv, i)
+                    ws = masked(m, scal, w, wv, i)
                 q = wp.int32(0)
                 for a in range(K):
                     ua = wp.vec3d()
