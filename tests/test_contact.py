@@ -438,6 +438,37 @@ def test_obstacles_are_checked_and_only_declared_ones_run():
     assert ws.Simulator(plain).rows is None  # no obstacle, no effector, no actuator: no row at all
 
 
+def test_a_body_starting_inside_an_obstacle_or_an_inward_mesh_is_an_error():
+    """A block 3 mm inside the floor (no gravity) was thrown off at 0.6 m/s without a word; a
+    closed mesh obstacle with inward triangles, and an open terrain turned over, were taken as
+    they were (a block ended inside the one, fell through the other). Each is a SceneError now,
+    naming the body, the solid and the depth; a block resting on the floor is not, nor one on a
+    terrain the right way up, nor a quasi-static one pressed into the floor (an imposed
+    indentation, as the Hertz scene's)."""
+    def scene_with(bottom: float, name: str, shape) -> ws.Scene:
+        scene = ws.Scene("start", gravity=(0.0, 0.0, 0.0), dt=0.005)
+        scene.add_body("block", ws.box_grid((-0.01, -0.01, bottom), (0.01, 0.01, bottom + 0.01), (5, 5, 3)),
+                       ws.Material(1e5, 0.3, 1000.0))
+        scene.add_obstacle(name, shape)
+        return scene
+
+    with pytest.raises(ws.SceneError, match=r"body 'block' starts 0.003 m inside obstacle 'floor'"):
+        ws.Simulator(scene_with(-0.003, "floor", ws.obstacles.Floor()))
+    ws.Simulator(scene_with(0.0, "floor", ws.obstacles.Floor()))  # resting on it
+    pressed = scene_with(-0.003, "floor", ws.obstacles.Floor())
+    pressed.static = True
+    pressed.fix(pressed.bodies[0], ws.OnPlane((0, 0, 0.007), (0, 0, 1)))
+    ws.Simulator(pressed)
+    corners = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+    ws.Simulator(scene_with(0.001, "ground", ws.obstacles.Mesh(corners, [(0, 1, 2), (0, 2, 3)])))
+    with pytest.raises(ws.SceneError, match=r"starts 0.011 m inside obstacle 'ground'.*normals must point out"):
+        ws.Simulator(scene_with(0.001, "ground", ws.obstacles.Mesh(corners, [(0, 2, 1), (0, 3, 2)])))
+    box = surface_of(ws.box_grid((0.1, 0.1, 0.0), (0.2, 0.2, 0.1), (2, 2, 2)))
+    assert box.closed()
+    with pytest.raises(ws.SceneError, match=r"got -0.001 m\^3: its triangles are inward"):
+        ws.obstacles.Mesh(box.vertices, box.triangles[:, ::-1])
+
+
 def test_the_octoleg_folds_over_its_cylinder_onto_the_floor(scene_module):
     """The arm's cable bends it over the cylinder until its tip rests on the floor: contacts on
     both solids, none entered, the tip at the floor's height, the cable held at its motor's force

@@ -49,13 +49,6 @@ class ContactBlock:
     name: str = "contacts"
 
 
-def mean_surface_edge(mesh) -> float:
-    """Mean edge length (m) of a mesh's surface triangles."""
-    tris = mesh.surface()
-    x = mesh.nodes[tris]
-    return float(np.mean(np.linalg.norm(x - np.roll(x, 1, axis=1), axis=2)))
-
-
 class ContactRows(RowKind):
     name, actuator, columns = "contact", False, True
 
@@ -126,7 +119,7 @@ class ContactRows(RowKind):
                 softs = []  # (BodyInfo, surface nodes, contact distance)
                 for info in (b for b in model.bodies if b.world == w):
                     body = next(bd for bd in model.scenes[w].bodies if bd.name == info.name)
-                    softs.append((info, np.unique(info.surface), 0.25 * mean_surface_edge(body.mesh)))
+                    softs.append((info, np.unique(info.surface), 0.25 * body.mesh.mean_surface_edge()))
                 rigids = [(rigid_index[(w, id(rb))], RIGID_REACH * rb.size) for rb in p.item.rigid]
                 for entry in p.item.obstacles:  # obstacles: every soft body's nodes, every rigid body's points
                     pack = entry.at(0.0).pack()
@@ -156,7 +149,7 @@ class ContactRows(RowKind):
                         surfaces[len(self.records) - 1] = info
                 for sc in p.item.selfs:  # a body's surface nodes against its own triangles
                     info = model.body_info(sc.body.name, w)
-                    reach = sc.contact_distance or 0.25 * mean_surface_edge(sc.body.mesh)
+                    reach = sc.contact_distance or 0.25 * sc.body.mesh.mean_surface_edge()
                     pack = (kernels.SELF, np.zeros(3), np.zeros(3), 2.0 * reach, np.eye(3))  # radius: apart
                     add(sc, pack, -1, reach, sc.mu, nodes=np.unique(info.surface))
                     surfaces[len(self.records) - 1] = info

@@ -146,6 +146,11 @@ class TetMesh:
         """Total volume (m^3)."""
         return float(signed_volumes(self.nodes, self.tets).sum())
 
+    def mean_surface_edge(self) -> float:
+        """Mean edge length (m) of the boundary triangles."""
+        x = self.nodes[self.surface()]
+        return float(np.mean(np.linalg.norm(x - np.roll(x, 1, axis=1), axis=2)))
+
     def surface(self) -> np.ndarray:
         """Boundary triangles, outward oriented, shape ``(k, 3)`` (node ids)."""
         if self._surface is None:

@@ -235,6 +235,13 @@ class Mesh(Obstacle):
         edges = np.sort(t[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
         _, counts = np.unique(edges, axis=0, return_counts=True)
         object.__setattr__(self, "_closed", bool(np.all(counts == 2)))
+        if self._closed:  # the solid is on the normals' back: its volume from them must be positive
+            a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+            volume = float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+            if volume <= 0.0:
+                raise SceneError(f"Mesh: a closed surface must enclose a positive volume with its normals "
+                                 f"pointing out of the solid (right-hand rule), got {volume:.3g} m^3: its "
+                                 "triangles are inward (reverse each triangle's vertex order)")
 
     @classmethod
     def load(cls, path, scale: float = 1.0) -> Mesh:

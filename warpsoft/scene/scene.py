@@ -473,11 +473,58 @@ class Scene:
             if held:
                 raise SceneError(f"attachment '{a.name}': nodes of body '{a.body.name}' are also fixed (region "
                                  f"{held[0].region!r}); a node is held by a fixed region or a rigid body, not both")
+        self._check_clear()
         if self.inverse:
             if not self.actuators:
                 raise SceneError(f"scene '{self.name}': the inverse model needs at least one actuator")
             if not any(e.target is not None for e in self.effectors):
                 raise SceneError(f"scene '{self.name}': the inverse model needs an effector with a target")
+
+    def _check_clear(self) -> None:
+        """No body of a dynamic scene starts inside an obstacle (at its pose at ``t = 0``) or a rigid
+        body (but for the nodes glued to it): the contact would throw it out in the first step. A
+        quasi-static scene may start so: the first step then presses the obstacle in, an imposed
+        indentation (``scenes/validation/hertz.py``), with no inertia to throw anything."""
+        if self.static:
+            return
+        solids = []
+        for entry in self.obstacles:
+            shape = entry.shape
+            if entry.motion is not None:
+                shape = shape.moved(*pose_of(entry.motion, 0.0, f"obstacle '{entry.name}': motion"))
+            solids.append((f"obstacle '{entry.name}'", shape, None))
+        for rigid in self.rigid_bodies:
+            solids.append((f"rigid body '{rigid.name}'", rigid.shape, rigid))
+        for body in self.bodies:
+            if not solids:
+                break
+            ids = np.unique(body.mesh.surface())
+            x, edge = body.mesh.nodes[ids], body.mesh.mean_surface_edge()
+            for what, shape, rigid in solids:
+                glued = np.zeros(len(ids), dtype=bool)
+                for a in self.attachments:
+                    if a.rigid is rigid and a.body is body:
+                        glued |= np.isin(ids, a.nodes)
+                d = signed_distance(shape, x[~glued])
+                if len(d) and -d.min() > START_OVERLAP * edge:
+                    k = int(np.argmin(d))
+                    raise SceneError(
+                        f"scene '{self.name}': body '{body.name}' starts {-d[k]:.3g} m inside {what} (its node at "
+                        f"{np.round(x[~glued][k], 6).tolist()} m): the contact would throw it out at the first "
+                        "step; move them apart (a Mesh obstacle's normals must point out of its solid, an open "
+                        "one's towards the bodies)")
+
+
+# a body may start this far inside an obstacle (times its mean surface spacing): round-off of a
+# body placed on a surface, no more
+START_OVERLAP = 1e-3
+
+
+def signed_distance(shape: Obstacle, points: np.ndarray) -> np.ndarray:
+    """``shape.distance(points)`` (m, negative inside), a Mesh's by chunks of points (its brute
+    force holds a point-triangle table)."""
+    step = max(1, 2_000_000 // max(1, len(getattr(shape, "triangles", ())) or 1))
+    return np.concatenate([shape.distance(points[i:i + step]) for i in range(0, len(points), step)] or [np.zeros(0)])
 
 
 def load_weights(load: Load) -> np.ndarray:
