@@ -106,9 +106,8 @@ class Simulator:
             factorizes. Each world decides on its own history (one factor per world), so it steps
             in a batch as it does alone. 0 (default): a factorization at every linearization.
             Off by default because its error is not bounded by the Newton tolerance: the residual
-            is measured with the kept tangent, which a spinning body turns away from, so a free
-            cube spinning at 20 rad/s kept 0.41 of its angular momentum after 500 steps of 0.5 ms
-            with 0.005, against 0.999999 without.
+            is measured with the kept tangent, which a spinning body turns away from, and drains
+            its angular momentum unseen (``tests/test_integrator.py``, docs/performance.md).
         share_tolerance: ``pcg`` with ``preconditioner="blocks"`` or ``"factors"``: worlds of one mesh and supports
             share a dense inverse when their systems differ from multiples of each other by at most
             this (the largest entry's difference, relative). The default shares exact multiples only

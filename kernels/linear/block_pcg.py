@@ -79,6 +79,16 @@ CHUNK = 8  # sums added up by one block reduction (a tile of vectors of this len
 Chunk = wp.types.vector(length=CHUNK, dtype=wp.float64)
 
 
+@wp.func
+def chunk_sum(s: Any, c: int) -> Chunk:
+    """The block's sum of entries ``c CHUNK`` to ``(c + 1) CHUNK - 1`` of each thread's ``s`` (a
+    float64 vector), one block reduction (a tile of :data:`CHUNK`-vectors); lane 0 reads it."""
+    part = Chunk()
+    for j in range(CHUNK):
+        part[j] = s[c * CHUNK + j]
+    return wp.tile_sum(wp.tile(part, preserve_type=True))[0]
+
+
 _grams = {}
 
 
@@ -93,8 +103,8 @@ def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d, w_vector=Non
     A block of threads per world (:func:`launch_worlds`, ``world_start`` its first node, ``(worlds +
     1,)``): each thread reads its nodes' vectors once and adds the products; the block then sums
     them :data:`CHUNK` at a time, one block reduction of a vector each (a launch per pair read 2
-    vectors a pair, ``k + 1`` times the bytes; a reduction a sum took 65 reductions an iteration
-    for 5 columns, where 9 now do). A converged world's block returns at once. Cached per ``k`` (a compile-time
+    vectors a pair, ``k + 1`` times the bytes; a reduction a sum, ``CHUNK`` times as many
+    reductions). A converged world's block returns at once. Cached per ``k`` (a compile-time
     constant: the sums live in registers) and vector types."""
     key = (columns, u_vector, v_vector, w_vector)
     if key in _grams:
@@ -154,13 +164,9 @@ def gram_kernel(columns: int, u_vector=wp.vec3d, v_vector=wp.vec3d, w_vector=Non
                             s[f] = s[f] + ua[0] * ws[b, 0] + ua[1] * ws[b, 1] + ua[2] * ws[b, 2]
                 i += wp.block_dim()
             total = Sums()  # (lane 0's)
-            for c in range(CHUNKS):  # CHUNK sums a block reduction
-                part = Chunk()
-                for j in range(CHUNK):
-                    part[j] = s[c * CHUNK + j]
-                t = wp.tile_sum(wp.tile(part, preserve_type=True))
+            for c in range(CHUNKS):
+                r = chunk_sum(s, c)
                 if lane == 0:
-                    r = t[0]
                     for j in range(CHUNK):
                         total[c * CHUNK + j] = r[j]
             if lane == 0:
@@ -232,13 +238,9 @@ def block_update_kernel(columns: int, vector=wp.vec3d):
                         r[a, i] = ri
                         rr[a] = rr[a] + wp.dot(ri, ri)
                 i += wp.block_dim()
-            for c in range(CHUNKS):  # CHUNK columns a block reduction
-                part = Chunk()
-                for j in range(CHUNK):
-                    part[j] = rr[c * CHUNK + j]
-                t = wp.tile_sum(wp.tile(part, preserve_type=True))
+            for c in range(CHUNKS):
+                sums = chunk_sum(rr, c)
                 if lane == 0:
-                    sums = t[0]
                     for j in range(CHUNK):
                         if c * CHUNK + j < K:
                             a = c * CHUNK + j
@@ -318,8 +320,7 @@ def block_begin_kernel(vector=wp.vec3d):
 _small = {}
 # on CUDA, a block's k x k loops unroll up to this many columns (then its small matrices live in
 # registers); larger blocks loop (compile time grows as k^3 unrolled). On the CPU they stay loops:
-# unrolled, the two kernels of 8 columns took 31 s to compile there, against 6 s as loops, and a
-# thread's small matrices cost no registers
+# unrolled they cost minutes of compilation, and a thread's small matrices need no registers
 SMALL_UNROLL = 8
 
 
