@@ -163,8 +163,8 @@ def test_nearly_equal_columns_in_single_precision_do_not_break_the_block(precond
     """Four cables 2 mm apart make a world's five columns nearly dependent; 16 bars from 50 kPa to
     2 MPa. With a float32 preconditioner (and float32 directions), ``Z = P^-1 R`` carries ~1e-7 of
     rounding. O'Leary's block CG (``beta = (R^T Z)^-1 R_new^T Z_new``) lost its conjugacy on it:
-    iterations grew to 21 a step, and the float32 factors and blocks met NaN at the 11th step.
-    The breakdown-free form keeps every step within a few iterations of float64 (at most 9 here,
+    iterations grew to 21 a solve, and the float32 factors and blocks met NaN at the 11th step.
+    The breakdown-free form keeps every solve within a few iterations of float64 (at most 9 here,
     float64 at most 8; the bound leaves room for another BLAS's rounding) and the bars on the
     direct solver's path."""
     steps = 12
@@ -177,7 +177,7 @@ def test_nearly_equal_columns_in_single_precision_do_not_break_the_block(precond
         warnings.simplefilter("error")  # (a ConvergenceWarning fails the test)
         for k in range(steps):
             stats = block.step()
-            assert stats.converged and stats.cg_iterations <= 15
+            assert stats.converged and stats.cg_iterations <= 15 * stats.newton_iterations
             x = block.state.q.numpy()
             motion = np.abs(want[k] - block.model.rest_np).max()
             assert np.abs(x - want[k]).max() < 1e-6 * motion
