@@ -11,6 +11,7 @@ wp.set_module_options(OPTIONS)
 def cavity_rows(
     q: wp.array(dtype=wp.vec3d),
     tris: wp.array(dtype=wp.vec3i),
+    tri_weight: wp.array(dtype=wp.float64),
     tri_row: wp.array(dtype=wp.int32),
     tri_origin: wp.array(dtype=wp.vec3d),
     entry_offset: int,
@@ -19,9 +20,9 @@ def cavity_rows(
     h_node: wp.array(dtype=wp.int32),
     h_coef: wp.array(dtype=wp.vec3d),
 ):
-    """One thread per triangle (oriented out of the cavity): ``V = 1/6 sum a . (b x c)`` with
-    positions relative to the cavity's origin, accumulated into ``delta`` (which holds ``-V0``
-    on entry); the exact gradient per vertex."""
+    """One thread per node triple (of a surface oriented out of the cavity): ``V = sum w a . (b x c)``
+    with positions relative to the cavity's origin (``w = 1/6`` for a linear triangle),
+    accumulated into ``delta`` (which holds ``-V0`` on entry); the exact gradient per node."""
     t = wp.tid()
     tri = tris[t]
     o = tri_origin[t]
@@ -29,8 +30,8 @@ def cavity_rows(
     b = q[tri[1]] - o
     c = q[tri[2]] - o
     r = tri_row[t]
-    sixth = wp.float64(1.0) / wp.float64(6.0)
-    wp.atomic_add(delta, r, sixth * wp.dot(a, wp.cross(b, c)))
+    w = tri_weight[t]
+    wp.atomic_add(delta, r, w * wp.dot(a, wp.cross(b, c)))
     e = entry_offset + 3 * t
     h_row[e] = r
     h_row[e + 1] = r
@@ -38,7 +39,7 @@ def cavity_rows(
     h_node[e] = tri[0]
     h_node[e + 1] = tri[1]
     h_node[e + 2] = tri[2]
-    h_coef[e] = sixth * wp.cross(b, c)
-    h_coef[e + 1] = sixth * wp.cross(c, a)
-    h_coef[e + 2] = sixth * wp.cross(a, b)
+    h_coef[e] = w * wp.cross(b, c)
+    h_coef[e + 1] = w * wp.cross(c, a)
+    h_coef[e + 2] = w * wp.cross(a, b)
 

@@ -1,8 +1,9 @@
 """Pneumatic cavity: a closed void in a body, inflated by a pressure.
 
 ``delta = V - V0`` is the cavity's volume growth (m^3), ``lambda`` its pressure (Pa, >= 0
-unless vacuum is allowed with a negative ``min_force``). ``H = dV/dq`` per node is the sum
-over its triangles of (area x normal) / 3, computed exactly as ``(b x c) / 6``.
+unless vacuum is allowed with a negative ``min_force``). ``H = dV/dq`` per node is the exact
+gradient of the volume: over linear triangles, a third of each one's area x normal; over a
+quadratic body's 6-node faces, ``int N n dA`` (:mod:`warpsoft.scene.surface`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import numpy as np
 
 from ..errors import SceneError
 from .actuator import Actuator
+from .surface import enclosed_volume, volume_terms
 
 
 @dataclass
@@ -56,7 +58,8 @@ class Cavity(Actuator):
         planes = self.symmetry_planes or []
         on_plane = [p(mesh.nodes) for p in planes]
         check_closed_surface(tris, f"cavity '{self.name}'", on_plane)
-        volume = enclosed_volume(mesh.nodes, tris, self.origin(tris))
+        triples, weights = volume_terms(mesh, tris, f"cavity '{self.name}'")
+        volume = enclosed_volume(mesh.nodes, triples, weights, self.origin(tris))
         if volume <= 0:
             raise SceneError(f"cavity '{self.name}': the surface is mis-oriented (it encloses {volume:.3e} m^3; "
                              "its normals must point out of the void, into the material)")
@@ -78,10 +81,3 @@ def check_closed_surface(tris: np.ndarray, label: str, on_plane: list[np.ndarray
     if missing:
         raise SceneError(f"{label}: the surface is open: {len(missing)} edge(s) belong to one triangle only, "
                          f"e.g. ({missing[0][0]}, {missing[0][1]})")
-
-
-def enclosed_volume(nodes: np.ndarray, tris: np.ndarray, origin=(0.0, 0.0, 0.0)) -> float:
-    """Volume (m^3) enclosed by a closed surface with outward triangles (or by an open one and
-    planes through ``origin``)."""
-    x = nodes[tris] - np.asarray(origin)
-    return float(np.einsum("ij,ij->i", x[:, 0], np.cross(x[:, 1], x[:, 2])).sum() / 6.0)

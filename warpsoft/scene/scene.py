@@ -21,6 +21,7 @@ from .mesh import TetMesh
 from .obstacles import Obstacle, ObstacleEntry, SelfContact, pose_of
 from .regions import Region, as_region
 from .rigid import Attachment, RigidBody, make_rigid
+from .surface import area_shares
 
 Vec3 = tuple[float, float, float]
 ELEMENTS = ("corotational", "quadratic", "neohookean")  # the element models a body may choose (warpsoft/elastic)
@@ -528,7 +529,9 @@ def signed_distance(shape: Obstacle, points: np.ndarray) -> np.ndarray:
 
 
 def load_weights(load: Load) -> np.ndarray:
-    """Per-node share (sums to 1) of ``load`` over its body's nodes, by surface area."""
+    """Per-node share (sums to 1) of ``load`` over its body's surface inside its region: the
+    integral of each node's shape function over it (:func:`warpsoft.scene.surface.area_shares`;
+    a quadratic body's 6-node faces count whole, so their corners take none of a flat face's load)."""
     mesh = load.body.mesh
     tris = mesh.surface()
     inside = load.region(mesh.nodes)
@@ -536,8 +539,5 @@ def load_weights(load: Load) -> np.ndarray:
     if len(tris) == 0:
         raise SceneError(f"load '{load.name}': region {load.region!r} contains no surface triangle of body "
                          f"'{load.body.name}'")
-    x = mesh.nodes[tris]
-    area = 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1)
-    w = np.zeros(mesh.num_nodes)
-    np.add.at(w, tris.ravel(), np.repeat(area / 3.0, 3))
+    w = area_shares(mesh, tris, f"load '{load.name}'")
     return w / w.sum()
