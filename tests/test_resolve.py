@@ -131,6 +131,44 @@ def test_device_qp_is_the_exact_optimum_piqp_approaches(n):
         assert np.abs(x[i] - ref).max() < 1e-5 * max(1.0, np.abs(ref).max())
 
 
+@pytest.mark.parametrize("n", [2, 4, 8])
+@pytest.mark.parametrize("eps", [0.0, 1e-4])
+def test_device_qp_on_dependent_actuators_is_optimal_like_piqp(n, eps):
+    """The inverse model's QPs when actuators 0 and 1 are identical cables (equal columns of
+    ``W_aa`` and ``W_ea``): ``P = task + eps W_sym`` is singular along their difference, and with
+    ``eps = 0`` along every actuation the fewer effector rows cannot see. The objective is flat
+    there; the device QP picks an optimum of least norm and must be as feasible and as low as
+    piqp's (a Cholesky without a pivot floor met a zero pivot: NaN, clipped to zero tensions,
+    labelled optimal)."""
+    rng = np.random.default_rng(10 * n + int(eps > 0))
+    k = 30
+    P, q, G, b = np.zeros((k, n, n)), np.zeros((k, n)), np.zeros((k, n, n)), np.zeros((k, 4, n))
+    for i in range(k):
+        ne = int(rng.integers(1, n + 1)) if eps == 0.0 else 3
+        A = rng.standard_normal((n, n))
+        A[:, 1] = A[:, 0]
+        W = A.T @ A / n
+        Wea = rng.standard_normal((ne, n))
+        Wea[:, 1] = Wea[:, 0]
+        task = Wea.T @ Wea
+        Pm = task + eps * np.abs(np.linalg.eigvalsh(task)).max() / np.abs(np.linalg.eigvalsh(W)).max() * W
+        scale = np.abs(Pm).max()
+        P[i], q[i], G[i] = Pm / scale, Wea.T @ (3.0 * rng.standard_normal(ne)) / scale, W
+        b[i, 0] = 0.0  # cables pull
+        b[i, 1] = np.where(rng.random(n) < 0.3, 2.0, np.inf)
+        b[i, 2] = np.where(rng.random(n) < 0.3, -0.5, -np.inf)
+        b[i, 3] = np.where(rng.random(n) < 0.3, 0.8, np.inf)
+    x, status = dense_qps(P, q, G, b, n)
+    assert np.all(status == 0)
+    for i in range(k):
+        ref = reference_qp(P[i], q[i], G[i], b[i])
+        Gx = G[i] @ x[i]
+        violation = max(np.max(b[i, 0] - x[i]), np.max(x[i] - b[i, 1]), np.max(b[i, 2] - Gx), np.max(Gx - b[i, 3]))
+        assert violation < 1e-6 * (1.0 + np.abs(x[i]).max())
+        f = lambda v, i=i: 0.5 * v @ P[i] @ v + q[i] @ v  # noqa: E731
+        assert f(x[i]) <= f(ref) + 1e-6 * max(1.0, abs(f(ref)))
+
+
 def test_device_qp_reports_infeasible_constraints():
     """``lambda >= 1`` and ``lambda <= -1`` through ``W_sym = I``: no solution, said so."""
     n = 2

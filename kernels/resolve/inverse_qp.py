@@ -28,12 +28,15 @@ EMPTY_BOUNDS = wp.constant(1)  # some row has dmin > dmax or lo > hi (result[w, 
 INFEASIBLE = wp.constant(2)  # the constraints cannot all hold
 ITERATION_CAP = wp.constant(3)
 NOT_SOLVED = wp.constant(4)  # not an inverse world, or no actuators
+BREAKDOWN = wp.constant(5)  # the solution is not finite (never labelled optimal)
 STATUS = wp.constant(0)
 ITERATIONS = wp.constant(1)
 DETAIL = wp.constant(2)
 NUM_RESULTS = 3
 
 
+# a pivot of P below this, relative to its largest diagonal entry, says P is singular (flat directions)
+SINGULAR = wp.constant(wp.float64(1e-6))
 NMAX = 16  # actuators per world the device QP takes (more: the host QP)
 SIZES = (4, 8, 16)  # the QP's local matrices come in these sizes: the smallest that holds a model's actuators
 _kernels = {}
@@ -55,14 +58,16 @@ def qp_kernels(size: int):
     NS = size
 
     @wp.func
-    def cholesky(M: matn, n: int) -> matn:
-        """Lower ``L`` with ``M = L L^T`` (``M`` symmetric positive definite, its first ``n`` rows)."""
+    def cholesky(M: matn, n: int, floor: wp.float64) -> matn:
+        """Lower ``L`` with ``M = L L^T`` (``M`` symmetric positive semidefinite, its first ``n``
+        rows); a pivot below ``floor`` is raised to it: ``L L^T`` is then ``M`` plus a diagonal
+        of at most ``floor`` where ``M`` is singular along a direction no earlier pivot spans."""
         L = matn()
         for j in range(n):
             s = M[j, j]
             for k in range(j):
                 s -= L[j, k] * L[j, k]
-            d = wp.sqrt(wp.max(s, wp.float64(1e-300)))
+            d = wp.sqrt(wp.max(s, floor))
             L[j, j] = d
             for i in range(j + 1, n):
                 t = M[i, j]
@@ -182,7 +187,25 @@ def qp_kernels(size: int):
     def dual_active_set(P: matn, q: vecn, G: matn, lo: vecn, hi: vecn, gl: vecn, gu: vecn, n: int, max_iterations: int):
         """Goldfarb-Idnani on ``min 1/2 x^T P x + q^T x`` under the one-sided constraints (see the
         module doc); returns ``(x, status, iterations)``."""
-        Lp = cholesky(P, n)
+        # P is only semidefinite when actuators depend on each other (two identical cables) and
+        # the least-energy term cannot tell them apart, or eps = 0 with fewer effector rows than
+        # actuators: the objective is then flat along some actuations. A pivot at the floor says
+        # so; P then gets the floor on its whole diagonal, which picks the optimum of least norm
+        # among them (identical cables share the tension) for an objective SINGULAR higher
+        largest = wp.float64(1e-300)
+        for i in range(n):
+            largest = wp.max(largest, P[i, i])
+        floor = SINGULAR * largest
+        Lp = cholesky(P, n, floor)
+        flat = wp.int32(0)
+        for i in range(n):
+            if Lp[i, i] * Lp[i, i] <= floor:
+                flat = wp.int32(1)
+        if flat == 1:
+            Pf = P
+            for i in range(n):
+                Pf[i, i] = Pf[i, i] + floor
+            Lp = cholesky(Pf, n, floor)
         B = matn()  # P^-1
         for j in range(n):
             e = vecn()
@@ -244,7 +267,7 @@ def qp_kernels(size: int):
                         for i in range(n):
                             s += na_vec[i] * BN[i, c]
                         M[a, c] = s
-                r = cholesky_solve(cholesky(M, na), rhs, na)
+                r = cholesky_solve(cholesky(M, na, wp.float64(1e-300)), rhs, na)
                 for i in range(n):
                     s = wp.float64(0.0)
                     for a in range(na):
@@ -356,6 +379,9 @@ def qp_kernels(size: int):
                     P[i, j] = task[i, j] + scale * Wsym[i, j]
                     norm = wp.max(norm, wp.abs(P[i, j]))
             x, status, its = dual_active_set(P / norm, q / norm, Wsym, lo, hi, gl, gu, n, max_iterations)
+            for i in range(n):
+                if not wp.isfinite(x[i]):
+                    status = wp.int32(BREAKDOWN)
             result[w, ITERATIONS] = wp.float64(its)
             if status == OPTIMAL:
                 for i in range(n):

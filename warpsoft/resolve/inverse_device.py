@@ -17,7 +17,7 @@ from ..launch import launch
 
 NMAX = kernels.NMAX
 STATUS = {int(kernels.OPTIMAL): "optimal", int(kernels.EMPTY_BOUNDS): "infeasible", int(kernels.INFEASIBLE):
-          "infeasible", int(kernels.ITERATION_CAP): "failed"}
+          "infeasible", int(kernels.ITERATION_CAP): "failed", int(kernels.BREAKDOWN): "failed"}
 
 
 class DeviceInverse:
@@ -78,5 +78,7 @@ class DeviceInverse:
         if code == int(kernels.INFEASIBLE):
             return status, ("QP found no solution: the actuator bounds cannot all be met this step; the previous "
                             "actuation is kept")
+        if code == int(kernels.BREAKDOWN):
+            return status, "QP met a numerical breakdown (a non-finite solution); the previous actuation is kept"
         return status, (f"QP stopped after {int(result[world, kernels.ITERATIONS])} active-set iterations; the "
                         "previous actuation is kept")
