@@ -97,3 +97,40 @@ def locate(nodes: np.ndarray, tets: np.ndarray, points: np.ndarray, names: list[
                              f"mean edge length)")
         ids[j], weights[j] = tets[e], lam[best]
     return ids, weights
+
+
+BALL_GRID = 16  # sample points per diameter of an anchor ball (~2,100 inside it)
+
+
+def ball_weights(nodes: np.ndarray, tets: np.ndarray, center, radius: float,
+                 name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The mean displacement over the material within ``radius`` (m) of ``center`` (m), as node
+    weights: ``u = sum_i w_i u_i`` with ``w_i = int N_i dV / V`` over the ball's part inside the
+    mesh (a regular grid of sample points; each one inside an element adds its barycentric
+    coordinates). Returns node ids ``(k,)`` int32 and weights ``(k,)`` (summing to 1).
+
+    Raises:
+        SceneError: naming ``name`` when no sample point lies in the material.
+    """
+    nodes, tets = np.asarray(nodes, dtype=float), np.asarray(tets)
+    axis = (np.arange(BALL_GRID) + 0.5) / BALL_GRID * 2.0 - 1.0
+    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    samples = np.asarray(center, dtype=float) + radius * grid[np.linalg.norm(grid, axis=1) <= 1.0]
+    tree = cKDTree(nodes[tets].mean(axis=1))
+    _, cand = tree.query(samples, k=min(CANDIDATES, len(tets)))
+    cand = np.minimum(cand.reshape(len(samples), -1), len(tets) - 1)
+    x = nodes[tets[cand]]  # (samples, candidates, 4, 3)
+    Dm = np.stack([x[..., 1, :] - x[..., 0, :], x[..., 2, :] - x[..., 0, :], x[..., 3, :] - x[..., 0, :]], axis=-1)
+    l123 = np.linalg.solve(Dm, (samples[:, None, :] - x[..., 0, :])[..., None])[..., 0]
+    lam = np.concatenate([1.0 - l123.sum(axis=-1, keepdims=True), l123], axis=-1)
+    best = np.argmax(lam.min(axis=-1), axis=1)
+    rows = np.arange(len(samples))
+    lam, elem = lam[rows, best], cand[rows, best]
+    inside = lam.min(axis=1) >= -1e-9
+    if not inside.any():
+        raise SceneError(f"{name}: no material within {radius:g} m of {np.asarray(center).tolist()} m")
+    ids = tets[elem[inside]].ravel()
+    weights = np.clip(lam[inside], 0.0, None).ravel()
+    unique, at = np.unique(ids, return_inverse=True)
+    total = np.bincount(at, weights)
+    return unique.astype(np.int32), total / total.sum()

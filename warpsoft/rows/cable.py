@@ -1,7 +1,10 @@
 """Cable rows: ``delta = L0 - L``, the shortening (m) of the path pull point -> p_1 -> ... -> p_N
 through points carried by the body; ``lambda`` is the tension (N, >= 0); ``H`` per path point
 is the unit direction to the previous point plus the one to the next (four entries per point,
-through its tetrahedron's weights)."""
+through its tetrahedron's weights). A cable fastened over an anchor (``anchor_radius > 0``) ends
+at the mean motion of the material within that radius of its last point
+(:func:`warpsoft.mapping.ball_weights`): its pull is spread over those nodes, as a knot or a
+washer spreads it, and converges under refinement where a point's does not."""
 
 from __future__ import annotations
 
@@ -12,7 +15,7 @@ from warpsoft.kernels.rows import cable as kernels
 
 from ..errors import SceneError
 from ..launch import launch
-from ..mapping import barycentric, locate
+from ..mapping import ball_weights, barycentric, locate
 from ..scene.obstacles import pose_of
 from .kind import RowKind
 
@@ -32,7 +35,31 @@ class CableRows(RowKind):
         d = model.device
         counts = np.array([p.num_points for p in placed], dtype=np.int32)
         self.point_offset = placed[0].first_point
-        self.num_entries = 4 * int(counts.sum())
+        # anchors: node ids and weights of each anchored cable, one block after the points' entries
+        a_start, a_count, a_nodes, a_weights, a_offset = [], [], [], [], []
+        for p in placed:
+            cable = p.item
+            a_start.append(sum(len(ids) for ids in a_nodes))
+            if cable.anchor_radius > 0.0:
+                lo, hi = self.point_elements(model, p.world, cable)
+                ids, w = ball_weights(model.rest_np, model.tets_np[lo:hi], cable.points[-1], cable.anchor_radius,
+                                      f"cable '{cable.name}': anchor")
+                a_nodes.append(ids)
+                a_weights.append(w)
+                a_offset.append(cable.points[-1] - w @ model.rest_np[ids])  # (the ball's part in the body)
+            else:
+                a_offset.append(np.zeros(3))
+            a_count.append(len(a_nodes[-1]) if cable.anchor_radius > 0.0 else 0)
+        anchors = int(sum(a_count))
+        self.num_entries = 4 * int(counts.sum()) + anchors
+        self.anchor_entry = entry_offset + 4 * int(counts.sum())
+        self.anchor_start = wp.array(np.array(a_start, dtype=np.int32), dtype=wp.int32, device=d)
+        self.anchor_count = wp.array(np.array(a_count, dtype=np.int32), dtype=wp.int32, device=d)
+        self.anchor_node = wp.array(np.concatenate(a_nodes) if anchors else np.zeros(1, np.int32), dtype=wp.int32,
+                                    device=d)
+        self.anchor_weight = wp.array(np.concatenate(a_weights) if anchors else np.zeros(1), dtype=wp.float64,
+                                      device=d)
+        self.anchor_offset = wp.array(np.array(a_offset), dtype=wp.vec3d, device=d)
         self.start = wp.array(np.array([p.first_point for p in placed], dtype=np.int32), dtype=wp.int32, device=d)
         self.count = wp.array(counts, dtype=wp.int32, device=d)
         self.pull_host = np.array([p.item.pull_point for p in placed])  # where each is now (m)
@@ -57,8 +84,10 @@ class CableRows(RowKind):
         # the entries of cable point j sit at entry_offset + 4 (j - point_offset): the cables'
         # points are contiguous in the table
         launch(kernels.cable_rows, len(self.placed),
-               inputs=[table.points, table.point_nodes, table.point_weights, self.start, self.count, self.pull,
-                       self.rest_length, self.row, self.entry_offset - 4 * self.point_offset],
+               inputs=[q, table.points, table.point_nodes, table.point_weights, self.start, self.count, self.pull,
+                       self.rest_length, self.row, self.entry_offset - 4 * self.point_offset, self.anchor_start,
+                       self.anchor_count, self.anchor_node, self.anchor_weight, self.anchor_offset,
+                       self.anchor_entry],
                outputs=[table.delta, table.h_row, table.h_node, table.h_coef], device=self.model.device)
 
     def paths(self, points: np.ndarray, world: int) -> dict[str, np.ndarray]:

@@ -6,6 +6,7 @@ tension (N, >= 0: a slack cable pulls nothing).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -26,6 +27,7 @@ class Cable(Actuator):
     points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     pull_point: np.ndarray = field(default_factory=lambda: np.zeros(3))
     pull_motion: Callable[[float], object] | None = None  # the pull point's frame (None: fixed in space)
+    anchor_radius: float = 0.0  # m: the last point pulls the material within it (0: that point alone)
     kind = "cable"
 
     def __post_init__(self) -> None:
@@ -41,6 +43,14 @@ class Cable(Actuator):
         if self.min_force < 0:
             raise SceneError(f"cable '{self.name}': min_force must be >= 0 N (a cable cannot push), "
                              f"got {self.min_force}")
+        try:
+            radius = float(self.anchor_radius)
+        except (TypeError, ValueError):
+            radius = math.nan
+        if not (math.isfinite(radius) and radius >= 0.0):
+            raise SceneError(f"cable '{self.name}': anchor_radius must be a finite length >= 0 m, "
+                             f"got {self.anchor_radius!r}")
+        self.anchor_radius = radius
         self.points, self.pull_point = pts, pull
 
     @property

@@ -250,7 +250,8 @@ class Scene:
     def add_cable(self, name: str, body: Body, points, pull_point, mode: str = "displacement",
                   value: float | Callable[[float], float] = 0.0, min_force: float = 0.0, max_force: float = math.inf,
                   min_displacement: float = -math.inf, max_displacement: float = math.inf,
-                  max_step: float = math.inf, pull_motion: Callable[[float], object] | None = None) -> Cable:
+                  max_step: float = math.inf, pull_motion: Callable[[float], object] | None = None,
+                  anchor_radius: float = 0.0) -> Cable:
         """A cable pulled from the fixed ``pull_point`` (m) through ``points`` ``(k, 3)`` (m) of ``body``.
 
         ``mode="displacement"``: ``value`` is the shortening (m); ``mode="force"``: the tension
@@ -258,6 +259,11 @@ class Scene:
         [min_displacement, max_displacement] m, at most ``max_step`` m of change per step.
         ``pull_motion``: the pull point rides a kinematic frame (its motor on a moving base or
         palm): ``t -> translation`` or ``t -> (rotation, translation)``, as ``fix(..., motion=)``.
+        ``anchor_radius`` (m): the cable is fastened over the material within this radius of its
+        last point (a knot, a washer): the pull is spread over it and the fastening's motion is
+        that material's mean motion, which converges as the mesh is refined. 0 (SOFA's point
+        fastening): the last point alone, whose motion under a given tension grows with every
+        refinement (a point load in a solid).
         """
         self._own(body, "add_cable")
         self._new_row_name(name)
@@ -267,7 +273,8 @@ class Scene:
                                  f"{pull_motion!r}")
             pose_of(pull_motion, 0.0, f"cable '{name}': pull_motion")
         cable = Cable(name, mode, value, min_force, max_force, min_displacement, max_displacement, max_step,
-                      body=body, points=points, pull_point=pull_point, pull_motion=pull_motion)
+                      body=body, points=points, pull_point=pull_point, pull_motion=pull_motion,
+                      anchor_radius=anchor_radius)
         self.cables.append(cable)
         return cable
 
