@@ -2,9 +2,11 @@
 
 A body's unknown over a step is its displacement ``d = (d_lin, d_ang)``: the move of its centre
 of mass (m) and its rotation vector (rad). Implicit Euler with the mass matrix
-``M = diag(m I, I_w)``: ``M d = h M (v, w) + h^2 (m g, -w x I_w w) + h^2 J^T lambda``, so the free
-motion is ``d_free = h (v, w) + h^2 (g, -I_w^-1 (w x I_w w))`` (the gyroscopic torque taken at
-the step's start) and a row's force moves it by ``h^2 M^-1 J^T lambda``. A row's entry on a
+``M = diag(m I, I_w)`` and the scene's Rayleigh mass damping ``a``:
+``(1 + h a) M d = h M (v, w) + h^2 (m g, -w x I_w w) + h^2 J^T lambda``, so with
+``keep = 1 / (1 + h a)`` the free motion is ``d_free = keep (h (v, w) + h^2 (g, -I_w^-1 (w x I_w w)))``
+(the gyroscopic torque taken at the step's start) and a row's force moves it by
+``keep h^2 M^-1 J^T lambda``. A row's entry on a
 body is ``(j_lin, j_ang)``: ``delta`` changes by ``j_lin . d_lin + j_ang . d_ang``.
 """
 
@@ -24,7 +26,7 @@ def world_inverse_inertia(r: wp.quatd, inertia: wp.mat33d):
 
 @wp.kernel
 def start(r: wp.array(dtype=wp.quatd), v: wp.array(dtype=wp.vec3d), w: wp.array(dtype=wp.vec3d),
-          inertia: wp.array(dtype=wp.mat33d), gravity: wp.array(dtype=wp.vec3d), h: wp.float64,
+          inertia: wp.array(dtype=wp.mat33d), gravity: wp.array(dtype=wp.vec3d), h: wp.float64, keep: wp.float64,
           inv_inertia_w: wp.array(dtype=wp.mat33d), target_lin: wp.array(dtype=wp.vec3d),
           target_ang: wp.array(dtype=wp.vec3d), dx_lin: wp.array(dtype=wp.vec3d), dx_ang: wp.array(dtype=wp.vec3d)):
     """The step's free motion of body ``b`` from its state (``inertia`` in its own frame,
@@ -33,9 +35,9 @@ def start(r: wp.array(dtype=wp.quatd), v: wp.array(dtype=wp.vec3d), w: wp.array(
     rot = wp.quat_to_matrix(r[b])
     i_inv = world_inverse_inertia(r[b], inertia[b])
     inv_inertia_w[b] = i_inv
-    target_lin[b] = h * v[b] + h * h * gravity[b]
+    target_lin[b] = keep * (h * v[b] + h * h * gravity[b])
     spin = rot * inertia[b] * wp.transpose(rot) * w[b]  # I_w w
-    target_ang[b] = h * w[b] - h * h * (i_inv * wp.cross(w[b], spin))
+    target_ang[b] = keep * (h * w[b] - h * h * (i_inv * wp.cross(w[b], spin)))
     dx_lin[b] = wp.vec3d()
     dx_ang[b] = wp.vec3d()
 
@@ -57,9 +59,9 @@ def accept(target_lin: wp.array(dtype=wp.vec3d), target_ang: wp.array(dtype=wp.v
 @wp.kernel
 def columns(j_row: wp.array(dtype=wp.int32), j_body: wp.array(dtype=wp.int32), j_lin: wp.array(dtype=wp.vec3d),
             j_ang: wp.array(dtype=wp.vec3d), column_of_row: wp.array(dtype=wp.int32),
-            inv_mass: wp.array(dtype=wp.float64), inv_inertia_w: wp.array(dtype=wp.mat33d),
+            inv_mass: wp.array(dtype=wp.float64), inv_inertia_w: wp.array(dtype=wp.mat33d), keep: wp.float64,
             y_lin: wp.array2d(dtype=wp.vec3d), y_ang: wp.array2d(dtype=wp.vec3d)):
-    """``Y[j, b] = M_b^-1 J_b^T`` of force row ``j``: the body's motion per unit force (the
+    """``Y[j, b] = keep M_b^-1 J_b^T`` of force row ``j``: the body's motion per unit force (the
     rigid counterpart of the compliance columns ``X``)."""
     e = wp.tid()
     b = j_body[e]
@@ -68,8 +70,8 @@ def columns(j_row: wp.array(dtype=wp.int32), j_body: wp.array(dtype=wp.int32), j
     col = column_of_row[j_row[e]]
     if col < 0:
         return
-    wp.atomic_add(y_lin, col, b, inv_mass[b] * j_lin[e])
-    wp.atomic_add(y_ang, col, b, inv_inertia_w[b] * j_ang[e])
+    wp.atomic_add(y_lin, col, b, keep * inv_mass[b] * j_lin[e])
+    wp.atomic_add(y_ang, col, b, keep * (inv_inertia_w[b] * j_ang[e]))
 
 
 @wp.kernel

@@ -41,6 +41,8 @@ class RigidBodies:
         self.y_ang = wp.zeros((ncol, n), dtype=wp.vec3d, device=d)
         self.pose_p, self.pose_r = vec(), wp.zeros(n, dtype=wp.quatd, device=d)
         self.names = [(w, rb.name) for w, rb in model.rigid]
+        # the scene's Rayleigh mass damping acts on every body it integrates, rigid ones too
+        self.keep = 1.0 / (1.0 + model.dt * model.rayleigh_mass)
 
     def _launch(self, kernel, dim, inputs) -> None:
         launch(kernel, dim, inputs=inputs, device=self.model.device)
@@ -50,7 +52,7 @@ class RigidBodies:
         """The step's free motion from ``state``; the step so far is nothing."""
         m = self.model
         self._launch(kernels.start, m.num_rigid,
-                     [state.body_r, state.body_v, state.body_w, m.rigid_inertia, m.rigid_gravity, m.dt,
+                     [state.body_r, state.body_v, state.body_w, m.rigid_inertia, m.rigid_gravity, m.dt, self.keep,
                       self.inv_inertia_w, self.target_lin, self.target_ang, self.dx_lin, self.dx_ang])
 
     def accept(self) -> None:
@@ -72,7 +74,7 @@ class RigidBodies:
         self.y_ang.zero_()
         self._launch(kernels.columns, r.num_rigid_entries,
                      [r.j_row, r.j_body, r.j_lin, r.j_ang, r.column_of_row, self.model.rigid_inv_mass,
-                      self.inv_inertia_w, self.y_lin, self.y_ang])
+                      self.inv_inertia_w, self.keep, self.y_lin, self.y_ang])
         self._launch(kernels.compliance, r.num_rigid_entries,
                      [r.j_row, r.j_body, r.j_lin, r.j_ang, self.y_lin, self.y_ang, self.model.rigid_world,
                       r.world_force_rows, scale, r.W])
