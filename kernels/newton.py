@@ -161,3 +161,36 @@ def prescribed_slope(e: wp.array(dtype=wp.vec3d), d: wp.array(dtype=wp.vec3d), a
     let a step go unconverged."""
     i = wp.tid()
     wp.atomic_add(sums, 0, world[i], SLOPE, wp.dot(wp.float64(2.0) * e[i] + d[i], a_d[0, i]))
+
+
+NUM_MOMENTS = 15  # moments[w, :]: sum m x (3), sum m x x^T (xx, yy, zz, xy, xz, yz), sum m e (3), sum m x x e (3)
+
+
+@wp.kernel
+def rigid_moments(
+    q: wp.array(dtype=wp.vec3d),
+    mass: wp.array(dtype=wp.float64),
+    e: wp.array(dtype=wp.vec3d),
+    world: wp.array(dtype=wp.int32),
+    free: wp.array(dtype=wp.int32),
+    moments: wp.array2d(dtype=wp.float64),
+):
+    """The mass moments of the positions ``q`` (m) and of the correction ``e`` (m) of the nodes
+    of the worlds free to move as a whole (``free[w]``), from which the host takes the rigid
+    motion that fits ``e`` best (``moments`` zeroed before)."""
+    i = wp.tid()
+    w = world[i]
+    if free[w] == 0:
+        return
+    m = mass[i]
+    x = q[i]
+    d = e[i]
+    c = wp.cross(x, d)
+    for k in range(3):
+        wp.atomic_add(moments, w, k, m * x[k])
+        wp.atomic_add(moments, w, 3 + k, m * x[k] * x[k])
+        wp.atomic_add(moments, w, 9 + k, m * d[k])
+        wp.atomic_add(moments, w, 12 + k, m * c[k])
+    wp.atomic_add(moments, w, 6, m * x[0] * x[1])
+    wp.atomic_add(moments, w, 7, m * x[0] * x[2])
+    wp.atomic_add(moments, w, 8, m * x[1] * x[2])

@@ -47,7 +47,6 @@ def test_a_state_changed_between_steps_is_linearized_again(scene_module, static,
     takes from that state; with ``factor_reuse``, it factorizes that linearization too (the last
     factorization knows nothing of the jump)."""
     scene = cantilever(scene_module, static=static)
-    # (reuse needs a last step converged at once within factor_reuse: at 0.1, as steps converge here)
     sim, history = run(scene, 6, factor_reuse=factor_reuse, newton_tolerance=0.1)
     if factor_reuse:  # steps kept the factorization, and the next one may
         assert any(s.factorizations < s.newton_iterations for s in history)

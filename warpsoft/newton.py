@@ -18,9 +18,14 @@ the finger at ``dt = 0.5 s`` flipped between two shapes every step), the step it
   slowly converging iteration shrinks ``e``): the error left is ``|eta|`` times the size of ``e``
   relative to the step's first correction (in the energy norm ``sqrt(e . A e)``; at least that
   of a strain of ``FLOOR_STRAIN`` throughout the body, so that a step that hardly moves is not
-  iterated for nothing). A world is done when a full step leaves an error ``<= tolerance``
-  (``<= factor_reuse`` where it solved on an earlier linearization's factorization: ``limit``);
-  its later iterations leave it in place (``alpha = 0``), its solve column 0;
+  iterated for nothing). In a world free to move as a whole (no fixed node), the first
+  correction's rigid part (the rigid motion that fits it best, by its mass moments) is left out
+  of that measure, down to ``RIGID_SHARE`` of it: a body spinning or flying is judged against how
+  it deforms more than against how far it travels (one linearization of a free cube turning at
+  20 rad/s left it stretched a hundred times too far, its error 1 % of its rigid motion). A
+  world is done when a full step leaves an error ``<= tolerance`` (``<= factor_reuse`` where
+  it solved on an earlier linearization's factorization: ``limit``); its later iterations
+  leave it in place (``alpha = 0``), its solve column 0;
 - line search: a world that overshot (``eta < -1/2``: its energy rises again before the full
   step) retries with ``alpha`` where the slope, interpolated linearly, vanishes;
 - inverse-model worlds solve their QP again at each iteration's linearization (the step ends
@@ -54,6 +59,10 @@ if TYPE_CHECKING:
 
 OVERSHOOT = 0.5  # eta below -OVERSHOOT: the step went past the minimum along it; the line search shortens it
 FLOOR_STRAIN = 1e-5  # corrections are judged against at least the energy of this strain throughout the body
+# a free world's first correction counts its deformation, but at least this share of its whole energy: a
+# converged implicit Euler step takes angular momentum from a spinning body ((w h)^2 a step), one
+# linearization keeps it; this share keeps it where one linearization's error is small against the motion
+RIGID_SHARE = 1e-2
 
 
 def zero_moving(a: wp.array, model, moving: wp.array | None) -> None:
@@ -113,6 +122,14 @@ class Newton:
         young = (m.mu.numpy() * (3 * m.lam.numpy() + 2 * m.mu.numpy()) / (m.lam.numpy() + m.mu.numpy()))
         energy = np.bincount(m.elem_world_np, young * m.volume.numpy(), minlength=worlds)
         self.floor = self.c_f * energy * FLOOR_STRAIN ** 2
+        # the worlds free to move as a whole: no node held on any axis (``rigid_moments``)
+        free = np.ones(worlds, dtype=bool)
+        np.logical_and.at(free, m.node_world_np, np.all(m.mask_np != 0.0, axis=1))
+        self.free_host = free & (not m.static)
+        self.free = wp.array(self.free_host.astype(np.int32), dtype=wp.int32, device=d)
+        self.moments = wp.zeros((worlds, kernels.NUM_MOMENTS) if self.free_host.any() else (0, 0), dtype=wp.float64,
+                                device=d)
+        self.world_mass = np.bincount(m.node_world_np, m.mass_np, minlength=worlds) if self.free_host.any() else None
         self.alpha_host = np.ones(worlds)
         self.alpha = wp.array(self.alpha_host, dtype=wp.float64, device=d)
         # the worlds this pass moves (1) and those it leaves where the last linearization was made
@@ -195,6 +212,10 @@ class Newton:
             if sim.driven is not None and self.accepted == 0:  # the step's first correction: with the frames' move
                 launch(kernels.prescribed_slope, m.num_nodes, inputs=[e, self.dx_base, sim.driven.a_dx,
                                                                       m.node_world, self.slope0], device=m.device)
+            if self.moments.shape[0] and self.accepted == 0:  # its rigid part, in the free worlds
+                self.moments.zero_()
+                launch(kernels.rigid_moments, m.num_nodes, inputs=[sim.state.q, self.mass, e, m.node_world, self.free],
+                       outputs=[self.moments], device=m.device)
         if actuated and not retry:
             wp.copy(self.lam_full, sim.gauss_seidel.lam)
         if actuated:
@@ -266,7 +287,10 @@ class Newton:
         g, g0 = host["newton"][0, :, kernels.SLOPE], host["newton_slope"][0, :, kernels.SLOPE]
         with np.errstate(divide="ignore", invalid="ignore"):
             eta = np.where(g0 > 0.0, g / g0, 0.0)
-        energy0 = np.maximum(g0, self.floor) if self.accepted == 0 else self.energy0
+        if self.accepted == 0:  # (a free world: its deformation, or RIGID_SHARE of its whole motion)
+            energy0 = np.maximum(np.maximum(g0 - self.rigid_energy(host), RIGID_SHARE * g0), self.floor)
+        else:
+            energy0 = self.energy0
         # the next correction along e is about eta e: relative to the step's first (or to the
         # floor, for a step that hardly moves), it is what is left
         error = np.abs(eta) * np.sqrt(np.maximum(g0, 0.0) / energy0)
@@ -286,6 +310,24 @@ class Newton:
         self.eta[moving], self.error[moving] = eta[moving], error[moving]
         self.iterations[moving] += 1
         return False
+
+    def rigid_energy(self, host: dict[str, np.ndarray]) -> np.ndarray:
+        """Per world, ``e_r . A e_r`` of the rigid motion ``e_r`` that fits the first correction
+        best in the mass norm (``(worlds,)``, 0 for a world held anywhere): its translation
+        ``P / M`` and rotation ``I^-1 L`` from the mass moments (``A`` acts on a rigid motion
+        by its mass term alone)."""
+        out = np.zeros(len(self.free_host))
+        if "newton_moments" not in host:
+            return out
+        for w in np.flatnonzero(self.free_host):
+            mom, mass = host["newton_moments"][w], self.world_mass[w]
+            c, p = mom[0:3] / mass, mom[9:12]
+            xx, yy, zz, xy, xz, yz = mom[3:9]
+            s = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) - mass * np.outer(c, c)  # about the centre
+            inertia = np.trace(s) * np.eye(3) - s
+            moment = mom[12:15] - np.cross(c, p)
+            out[w] = self.sim.mass_scale * (p @ p / mass + moment @ np.linalg.pinv(inertia) @ moment)
+        return out
 
     def go_on(self) -> bool:
         """After an iteration was accepted: whether another is due (some world's full step left an

@@ -88,9 +88,8 @@ class Simulator:
         newton_tolerance: the nonlinear residual along the last correction, relative to the
             correction's own (``|R . e| / e . A e``, see :mod:`warpsoft.newton`), at which a world's
             step is done; above it after ``newton_iterations``, the step warns. None (default):
-            0.1 quasi-static; 1e-2 with implicit Euler, whose energy a looser step can raise (a
-            single linearization leaves a fast-turning body stretched); 1e-4 with the trapezoid,
-            whose energy a looser step leaks. The README gives the measured energy errors.
+            0.1 (quasi-static, implicit Euler); 1e-4 with the trapezoid, whose energy a looser step
+            leaks. The README gives the measured energy errors.
         line_search: most shortened retries of a Newton step that overshot (0: full steps only).
         lazy_contacts: direct model with contacts, Gauss-Seidel on the host's CPU (the CPU device;
             on CUDA, between two graphs): resolve only the contacts that bear, found lazily
@@ -288,7 +287,7 @@ class Simulator:
             self.contact_set = ContactSet(self)
         self.solve_result = None  # the last solve's outcome, when it ran outside a graph
         if newton_tolerance is None:
-            newton_tolerance = 0.1 if m.static else 1e-4 if m.integrator == "trapezoidal" else 1e-2
+            newton_tolerance = 1e-4 if m.integrator == "trapezoidal" and not m.static else 0.1
         self.newton = Newton(self, newton_iterations, newton_tolerance, line_search)
         self.operator.moving = self.newton.moving_flag  # a later iteration relinearizes the worlds that moved alone
         if hasattr(self.solver, "hold"):  # a world Newton holds in place (alpha 0) is not solved again
@@ -298,6 +297,8 @@ class Simulator:
         # after the step (the solver's outcome, health, rows at the new state)
         after = {"health_flag": self.health_flag, "health_step": self.health_step, "inverted": self.inverted,
                  "newton": self.newton.sums, "newton_slope": self.newton.slope0}
+        if self.newton.moments.shape[0]:  # (a world free to move as a whole)
+            after["newton_moments"] = self.newton.moments
         after |= getattr(self.solver, "readback_arrays", dict)()
         self.before_qp = None
         if self.rows is not None:
