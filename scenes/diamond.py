@@ -19,7 +19,7 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
           mesh_size=0.01, mode="direct", cable_displacements=(0.0, 0.0, 0.0, 0.0), ramp_time=1.0,
           max_cable_displacement=0.02, max_cable_step=0.001, target=None, circle_radius=0.015, circle_depth=0.003,
           circle_period=4.0, static=False, mesh=None, cable_schedule=None, cable_forces=None, refine=0,
-          element="corotational"):
+          element="corotational", anchor_radius=0.0):
     """``mode="direct"``: each cable i shortens linearly to ``cable_displacements[i]`` (m) over
     ``ramp_time`` (s). ``mode="inverse"``: the cables follow the effector's ``target`` (x, y, z)
     (m), or by default a circle of ``circle_radius`` (m), ``circle_depth`` (m) below the rest top,
@@ -32,7 +32,8 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
     it over ``ramp_time`` (0: a free cable), the others by displacement. ``refine``: the mesh
     (generated or ``mesh``) split that many times, each element into eight (nested refinement).
     ``element``: the body's element model (``Scene.add_body``: "corotational", "quadratic",
-    "neohookean")."""
+    "neohookean"). ``anchor_radius`` (m): each cable fastened over the material within it of its
+    corner (a knot); 0: at the corner point."""
     if mode not in ("direct", "inverse"):
         raise ws.SceneError(f"diamond: mode must be 'direct' or 'inverse', got {mode!r}")
     if cable_schedule is not None and (mode != "direct" or not callable(cable_schedule)):
@@ -72,7 +73,7 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
     for i, (c, d, pull) in enumerate(zip(corners, cable_displacements, pulls, strict=True)):
         if forces[i] is not None:  # driven by its tension
             scene.add_cable(f"cable{i}", body, points=[tuple(c)], pull_point=tuple(pull), mode="force",
-                            value=ws.Ramp(float(forces[i]), ramp_time))
+                            value=ws.Ramp(float(forces[i]), ramp_time), anchor_radius=anchor_radius)
             continue
         if cable_schedule is None:
             value = ws.Ramp(d, ramp_time)
@@ -80,7 +81,7 @@ def build(radius=0.097, corner_height=0.045, top_height=0.125, leg_radius=0.011,
             value = lambda t, i=i: cable_schedule(t)[i]  # noqa: E731
         scene.add_cable(f"cable{i}", body, points=[tuple(c)], pull_point=tuple(pull), mode="displacement",
                         value=value, min_displacement=0.0,
-                        max_displacement=max_cable_displacement, max_step=step)
+                        max_displacement=max_cable_displacement, max_step=step, anchor_radius=anchor_radius)
     top_point = np.array([0.0, 0.0, top_height])
     if mode == "inverse":
         if target is None:

@@ -33,13 +33,13 @@ def finger_shape(inner: float, side: int, y: float, top: float, length: float, t
 def build(mu=0.8, floor_mu=0.5, cube_size=0.03, cube_mass=0.01, length=0.06, thickness=0.012, width=0.012,
           gap=0.004, notches=3, notch_depth=0.004, notch_width=0.003, young_modulus=600e3, poisson_ratio=0.45,
           density=1070.0, gravity=9.81, dt=0.01, rayleigh_mass=0.5, rayleigh_stiffness=0.01, mesh_size=0.008,
-          close=0.008, lift=0.02, times=(1.0, 2.0, 2.5, 3.0, 3.5), contact_distance=0.001):
+          close=0.008, lift=0.02, times=(1.0, 2.0, 2.5, 3.0, 3.5), contact_distance=0.001, element="corotational"):
     """Fingers ``length`` x ``thickness`` x ``width`` (m), ``gap`` (m) from the cube's faces at
     rest, their tips ``gap`` above the floor; a cube of ``cube_size`` (m) and ``cube_mass`` (kg)
     with friction ``mu`` against the fingers (``floor_mu`` on the floor). The sequence, at
     ``times`` (s): the cables shorten by ``close`` (m) until the first, the palm rises by
     ``lift`` (m) until the second, holds until the third, the cables let go until the fourth,
-    and the run ends at the fifth."""
+    and the run ends at the fifth. ``element``: the fingers' element model (see ``Scene.add_body``)."""
     t_close, t_lift, t_hold, t_open, t_end = times
     half = cube_size / 2
     top = gap + length  # the palm's underside (m)
@@ -59,7 +59,8 @@ def build(mu=0.8, floor_mu=0.5, cube_size=0.03, cube_mass=0.01, length=0.06, thi
     fingers = (("thumb", 1, 0.0), ("index", -1, width / 2 + 0.001), ("middle", -1, -width / 2 - 0.001))
     for name, side, y in fingers:
         shape = finger_shape(inner, side, y, top, length, thickness, width, notches, notch_depth, notch_width)
-        finger = scene.add_body(name, ws.mesh_shape(shape, mesh_size, name=f"grasper_{name}"), material)
+        finger = scene.add_body(name, ws.mesh_shape(shape, mesh_size, name=f"grasper_{name}"), material,
+                                element=element)
         scene.fix(finger, ws.InBox((-1.0, -1.0, top - 0.1 * length), (1.0, 1.0, 1.0)), motion=palm)
         x = side * (inner + notch_depth + 0.3 * (thickness - notch_depth))  # behind the notches
         path = [(x, y, top - length * k / 10) for k in range(1, 10)] + [(x, y, top - length + 0.003)]
