@@ -16,7 +16,11 @@ closing, rigid bodies and kinematic frames: its cube's centre counts as a probe;
 payload, an attachment; the pebble, a rigid cube's points on a slab's triangles; the swinging
 cantilever, 10-node elements; the Stifface, Neo-Hookean elements under the inverse model). Then the three
 worlds of tests/test_worlds.py (an inverse Diamond, an inverse Trunk, a Diamond driven
-directly) on CUDA, together and alone. Writes gpu_check.json.
+directly) on CUDA, together and alone. Then the conformance checks of the CPU suite, on CUDA with
+each solver and preconditioner a user can pick (``--conformance``, on by default): a free spinning
+cube keeps its angular momentum (to 1e-4), implicit Euler does not raise its energy at its default
+Newton tolerance, and the Diamond with a doubled cable reaches its target with the device QP as
+with piqp. Writes gpu_check.json; exits 1 if a check fails or raises.
 """
 
 from __future__ import annotations
@@ -92,6 +96,77 @@ def worlds_check(device: str, steps: int = 6) -> dict:
     return row
 
 
+CONFORMANCE_SOLVERS = {"pcg": {"solver": "pcg"}, "pcg_dense": {"solver": "pcg", "preconditioner": "dense"},
+                       "pcg_blocks": {"solver": "pcg", "preconditioner": "blocks"},
+                       "pcg_factors": {"solver": "pcg", "preconditioner": "factors"}, "jacobi": {"solver": "jacobi"}}
+
+
+def spinning_cube(device: str, dt: float, rate: float, steps: int, **options) -> dict:
+    """A free 2 cm cube (1 MPa) spun at ``rate`` (rad/s) in zero gravity: the relative change of
+    its angular momentum and its largest total energy over ``steps``, relative to the start."""
+    import warp as wp
+
+    import warpsoft as ws
+
+    scene = ws.Scene("spin", gravity=(0, 0, 0), dt=dt)
+    scene.add_body("cube", ws.box_grid((-0.01, -0.01, -0.01), (0.02, 0.02, 0.02), (2, 2, 2)),
+                   ws.Material(1e6, 0.45, 1000.0), element="corotational")
+    sim = Simulator(scene, device=device, **options)
+    x, m = sim.model.rest_np, sim.model.mass_np
+    sim.state.v.assign(wp.array(np.cross([0.0, 0.0, rate], x - x.mean(axis=0)), dtype=wp.vec3d, device=device))
+
+    def momentum():
+        q, v = sim.state.q.numpy(), sim.state.v.numpy()
+        c = (m[:, None] * q).sum(axis=0) / m.sum()
+        return (m[:, None] * np.cross(q - c, v)).sum(axis=0)
+
+    start, e0, rise = momentum(), sim.energy()["total"], 0.0
+    for _ in range(steps):
+        sim.step()
+        rise = max(rise, sim.energy()["total"] / e0 - 1.0)
+    return {"momentum_change": float(np.linalg.norm(momentum() - start) / np.linalg.norm(start)),
+            "energy_rise": float(rise)}
+
+
+def twin_cables(device: str) -> dict:
+    """The Diamond (inverse, quasi-static) with its first cable doubled: the effector's distance
+    (m) to its target with the device QP and with piqp, and between them."""
+    import warpsoft as ws
+
+    reached = {}
+    for qp in ("device", "piqp"):
+        scene = build_scene(ROOT / "scenes/diamond.py", {"mesh_size": 0.014, "gravity": 0.0, "static": True,
+                                                         "dt": 1.0, "mode": "inverse", "max_cable_step": 0.02,
+                                                         "target": (0.0, -0.0072, 0.1311)})
+        first = scene.cables[0]
+        scene.add_cable("twin", scene.bodies[0], points=first.points, pull_point=first.pull_point,
+                        min_displacement=0.0, max_displacement=first.max_displacement, max_step=first.max_step)
+        sim = ws.Simulator(scene, device=device, qp=qp)
+        for _ in range(10):
+            stats = sim.step()
+        reached[qp] = (stats.effectors["effector"], stats.effector_error["effector"], stats.qp_status)
+    return {"device_error_m": float(reached["device"][1]), "piqp_error_m": float(reached["piqp"][1]),
+            "device_status": reached["device"][2],
+            "device_vs_piqp_m": float(np.linalg.norm(reached["device"][0] - reached["piqp"][0]))}
+
+
+def conformance(device: str) -> tuple[dict, bool]:
+    """The CPU suite's physics checks on ``device``: measured values and whether each holds."""
+    out, ok = {}, True
+    for name, options in CONFORMANCE_SOLVERS.items():
+        spin = spinning_cube(device, 5e-4, 20.0, 100, **options)
+        fast = spinning_cube(device, 1.5e-3, 20.0, 100, **options)
+        row = {"momentum_change": spin["momentum_change"], "energy_rise_1.5ms": fast["energy_rise"]}
+        row["pass"] = spin["momentum_change"] < 1e-4 and fast["energy_rise"] < 1e-6
+        ok &= row["pass"]
+        out[name] = row
+    twin = twin_cables(device)
+    twin["pass"] = (twin["device_status"] == "optimal" and twin["device_error_m"] < 2e-5
+                    and twin["device_vs_piqp_m"] < 1e-5)
+    out["twin_cables"] = twin
+    return out, ok and twin["pass"]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenes", nargs="*", default=SCENES)
@@ -100,6 +175,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="out/gpu_check")
     ap.add_argument("--worlds", action=argparse.BooleanOptionalAction, default=True,
                     help="also step the three worlds together and alone")
+    ap.add_argument("--conformance", action=argparse.BooleanOptionalAction, default=True,
+                    help="also run the physics conformance checks on CUDA")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -134,6 +211,15 @@ def main(argv=None) -> int:
         except Exception as exc:
             ok = False
             summary["worlds"] = {"error": f"{type(exc).__name__}: {exc}"}
+            traceback.print_exc()
+    if args.conformance:
+        try:
+            summary["conformance"], passed = conformance("cuda")
+            ok &= passed
+            print("conformance", json.dumps(summary["conformance"], indent=1), flush=True)
+        except Exception as exc:
+            ok = False
+            summary["conformance"] = {"error": f"{type(exc).__name__}: {exc}"}
             traceback.print_exc()
     (out / "gpu_check.json").write_text(json.dumps(summary, indent=1))
     return 0 if ok else 1
