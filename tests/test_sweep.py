@@ -135,3 +135,68 @@ def test_a_failing_world_is_named_and_the_rest_of_its_batch_runs_on_together(bea
     with pytest.raises(ws.SimulationError, match=r"step 1 \(t = [0-9.]+ s\) \(world 1\): a node moved") as info:
         sim.step()
     assert info.value.worlds == [1]
+
+
+FAILING = '''
+import math
+
+import warpsoft as ws
+
+
+def build(young_modulus=1e6, fails="no"):
+    """A cable-pulled cantilever, 4 quasi-static steps of 10 ms; ``fails`` says how this design
+    fails: "build" (a ValueError in build), "load" (its load raises at t = 0.03 s), "nan" (its load
+    turns NaN at t = 0.03 s), "cable" (its cable's schedule raises at t = 0.02 s), or "no"."""
+    if fails == "build":
+        raise ValueError("this design cannot be built")
+    scene = ws.Scene("beam", static=True, dt=0.01, steps=4)
+    body = scene.add_body("beam", ws.box_grid((0.0, -0.005, -0.005), (0.1, 0.01, 0.01), (10, 2, 2)),
+                          ws.Material(young_modulus, 0.3, 1000.0), element="corotational")
+    scene.fix(body, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0)))
+
+    def load(t):
+        if fails == "load" and t > 0.025:
+            raise RuntimeError("the load's table ends here")
+        return (0.0, 0.0, math.nan if fails == "nan" and t > 0.025 else -0.01 * t / 0.04)
+
+    def pull(t):
+        if fails == "cable" and t > 0.015:
+            raise KeyError("no command past 15 ms")
+        return 0.001 * t / 0.04
+
+    scene.add_force(body, ws.OnPlane((0.1, 0.0, 0.0), (1.0, 0.0, 0.0)), load)
+    scene.add_cable("c", body, points=[(0.05, 0.0, 0.004), (0.09, 0.0, 0.004)], pull_point=(-0.01, 0.0, 0.004),
+                    value=pull)
+    scene.add_probe("tip", (0.1, 0.0, 0.0))
+    return scene
+'''
+
+
+def test_a_design_is_the_unit_of_failure(tmp_path, capsys):
+    """Eight designs in one batch, four failing in each way a user's scene can at t > 0 or at
+    build: each is recorded with its error's type and message and the steps it finished; the
+    other four complete with the same trajectories as alone; the command exits 0 and says how
+    many failed (before: exit 2, no table, the good designs lost)."""
+    path = tmp_path / "failing.py"
+    path.write_text(FAILING)
+    designs = [{"young_modulus": 1e6}, {"fails": "load"}, {"young_modulus": 2e6}, {"fails": "nan"},
+               {"young_modulus": 3e6}, {"fails": "cable"}, {"young_modulus": 4e6}, {"fails": "build"}]
+    batched = sweep(path, designs, batch=8, workers=1, solver="direct")
+    alone = sweep(path, [d for d in designs if "fails" not in d], batch=1, workers=1, solver="direct")
+    status = {r.params.get("fails", "no"): (r.status, r.steps, r.error) for r in batched}
+    assert status["build"][0] == "invalid" and status["build"][2] == "ValueError: this design cannot be built"
+    assert status["load"][:2] == ("failed", 2) and "RuntimeError: the load's table ends here" in status["load"][2]
+    assert status["cable"][:2] == ("failed", 1) and "KeyError" in status["cable"][2]
+    assert status["nan"][:2] == ("failed", 2) and "must return 3 finite numbers" in status["nan"][2]
+    good = [r for r in batched if "fails" not in r.params]
+    assert [r.status for r in good] == ["completed"] * 4
+    for a, b in zip(good, alone, strict=True):
+        assert a.steps == 4 and np.abs(a.probes["tip"] - b.probes["tip"]).max() < 1e-12
+    out = tmp_path / "out"
+    code = main(["sweep", str(path), "--grid", "fails=['no', 'load', 'build']", "--batch", "3", "--workers", "2",
+                 "--out", str(out)])
+    assert code == 0
+    with open(out / "results.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["status"] for r in rows] == ["completed", "failed", "invalid"]
+    assert "1 of 3 designs completed" in capsys.readouterr().out

@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import sys
 import time
 from pathlib import Path
@@ -131,6 +132,12 @@ def sweep_command(args) -> int:
     check_device(args.device)
     if not args.grid and not args.random:
         raise SceneError("sweep: give the designs: --grid NAME=[...] and/or --random N NAME=lo:hi")
+    # what the options need, said before any design runs (a plot is only skipped)
+    for wanted, module in ((args.parquet, "pyarrow"), (args.ray, "ray")):
+        if wanted and importlib.util.find_spec(module) is None:
+            extra = "ray" if module == "ray" else "sweep"
+            raise SceneError(f"sweep: {'--parquet' if module == 'pyarrow' else '--ray'} needs {module}: "
+                             f"pip install 'warpsoft[{extra}]'")
     designs = grid(parse_grid(args.grid)) if args.grid else [{}]
     if args.random:
         try:
@@ -152,7 +159,13 @@ def sweep_command(args) -> int:
     metrics = next((list(r.metrics) for r in results if r.metrics), [])
     metric = args.plot or (metrics[0] if metrics else None)
     if metric is not None and swept:
-        print(f"  plot: {plot_sweep(results, metric, swept[:2], out / f'{metric}.png')}")
+        if importlib.util.find_spec("matplotlib") is None:
+            print("  no plot: matplotlib is not installed (pip install 'warpsoft[sweep]')")
+        else:
+            try:
+                print(f"  plot: {plot_sweep(results, metric, swept[:2], out / f'{metric}.png')}")
+            except SceneError as exc:  # the sweep ran and its table is written: the plot is only skipped
+                print(f"  no plot: {exc}")
     return 0
 
 

@@ -8,10 +8,13 @@ A design is one dictionary of scene parameters (``build(**params)``). Designs ar
 in parallel processes, into the mesh cache (``WARPSOFT_MESH_CACHE``, by default a folder of
 the output). They are then stepped ``batch`` at a time: each batch is one
 :func:`warpsoft.finalize` model with one world per design, so its designs share every launch.
-A design whose ``build`` fails is recorded as ``invalid``. A step that fails names its
-worlds: those designs are ``failed``, with the steps they finished and the error they meet
-alone, and the rest of the batch runs again together (a failure that names no world, as in a
-solver, runs each design of the batch again alone); the others complete.
+A design is the unit of failure. One whose ``build`` fails, in any way, is recorded as
+``invalid``. A step that fails names its worlds: those designs are ``failed``, with the steps
+they finished and the error they meet alone, and the rest of the batch runs again together. Any
+other error of a batch (a solver's, the scene's own code raising at some time, a model the
+designs cannot share) runs the batch again in halves, down to each design alone, where the one
+that meets it is ``failed`` with its type and message and the steps it finished; the others
+complete.
 
 Per design (:class:`DesignResult`): the probe and effector trajectories, the actuators' delta and
 lambda, the effector error, the warnings. The row of the results table holds the parameters,
@@ -38,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import SceneError, SimulationError, WarpsoftError
+from ..errors import SceneError, SimulationError
 from ..model import finalize
 from ..processes import bind_to_parent
 from ..simulator import Simulator
@@ -157,8 +160,8 @@ def _build_for_cache(scene_file: str, params: dict) -> str | None:
     """In a worker process: build the scene once, so that its meshes land in the cache."""
     try:
         build_scene(scene_file, params)
-    except WarpsoftError as exc:  # the sweep records it when it builds the design itself
-        return str(exc)
+    except Exception as exc:  # any error of the design: the sweep records it when it builds the design itself
+        return f"{type(exc).__name__}: {exc}"
     return None
 
 
@@ -258,7 +261,7 @@ def run_designs(scene_file: str | Path, chunk: list[DesignResult], steps: int | 
     for r in chunk:
         try:
             scenes.append(build_scene(scene_file, r.params))
-        except WarpsoftError as exc:
+        except Exception as exc:  # any error of one design's build (its own code's included): that design's
             r.status, r.error = "invalid", f"{type(exc).__name__}: {exc}"
     valid = [r for r in chunk if r.status != "invalid"]
     if valid:
@@ -271,15 +274,23 @@ def run_designs(scene_file: str | Path, chunk: list[DesignResult], steps: int | 
 def run_batch(scenes: list, results: list[DesignResult], steps: int, device: str | None, options: dict) -> None:
     """Step ``scenes`` together (one world each) and fill ``results``. When a step fails, the
     worlds it names keep their record up to the failure (``failed``) and the others run again
-    as a batch; a failure that names no world runs each design again alone."""
+    as a batch; any other failure runs the batch again in halves, down to the designs alone,
+    where it is that design's."""
     try:
         _step_worlds(scenes, results, steps, device, options)
-    except SimulationError as exc:
-        failed = set(exc.worlds or []) if len(scenes) > 1 else {0}
-        if not failed:
-            for scene, r in zip(scenes, results, strict=True):
-                _clear(r)
-                run_batch([scene], [r], steps, device, options)
+    except Exception as exc:  # (not KeyboardInterrupt: a stop is the sweep's, not a design's)
+        named = exc.worlds if isinstance(exc, SimulationError) else None
+        if len(scenes) == 1:
+            message = _own_message(exc) if isinstance(exc, SimulationError) else str(exc)
+            results[0].status, results[0].error = "failed", f"{type(exc).__name__}: {message}"
+            return
+        failed = set(named or [])
+        if not failed:  # halves, again and again: a few failing designs among many cost a few batches each
+            half = len(scenes) // 2
+            for part in (range(half), range(half, len(scenes))):
+                for k in part:
+                    _clear(results[k])
+                run_batch([scenes[k] for k in part], [results[k] for k in part], steps, device, options)
             return
         for w in failed:
             results[w].status, results[w].error = "failed", f"{type(exc).__name__}: {_own_message(exc)}"
@@ -290,7 +301,7 @@ def run_batch(scenes: list, results: list[DesignResult], steps: int, device: str
             run_batch([scenes[k] for k in rest], [results[k] for k in rest], steps, device, options)
 
 
-def _own_message(exc: SimulationError) -> str:
+def _own_message(exc: Exception) -> str:
     """The error as the design would have met it alone: without the batch's world numbers."""
     return re.sub(r" \(worlds? [0-9, ]+\)", "", str(exc), count=1)
 
@@ -415,6 +426,9 @@ def plot_sweep(results: Sequence[DesignResult], metric: str, params: Sequence[st
     if not params or len(params) > 2 or unknown:
         raise SceneError(f"sweep plot: give one or two swept parameters, got {list(params)} "
                          f"(the designs have: {', '.join(done[0].params)})")
+    for p in params:
+        if not all(isinstance(r.params[p], (int, float)) and not isinstance(r.params[p], bool) for r in done):
+            raise SceneError(f"sweep plot: parameter {p!r} is not a number in every design; plot over a numeric one")
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6, 4.5))
     x = np.array([float(r.params[params[0]]) for r in done])
