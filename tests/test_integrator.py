@@ -187,3 +187,35 @@ def test_implicit_euler_does_not_raise_the_energy_of_a_spinning_cube_at_its_defa
     assert rise < 1.0 + 3e-3
     if dt >= 1e-3:
         assert rise <= 1.0 + 1e-9 and end < 0.99
+
+
+def test_a_free_world_and_a_held_one_step_together_as_alone():
+    """Newton's measure of a free world (its deformation) is per world: a spinning free cube and
+    a held one in one model step as each does alone."""
+    def scenes():
+        held = spinning_cube(1e-3)
+        held.fix(held.bodies[0], ws.OnPlane((0.0, 0.0, -0.01), (0.0, 0.0, 1.0), tol=1e-9))
+        return [spinning_cube(1e-3), held]
+
+    def spin(sim, world_nodes):
+        x, v = sim.model.rest_np, np.zeros_like(sim.model.rest_np)
+        for nodes in world_nodes:
+            v[nodes] = np.cross([0.0, 0.0, 30.0], x[nodes] - x[nodes].mean(axis=0))
+        sim.state.v.assign(wp.array(v * sim.model.mask_np, dtype=wp.vec3d, device="cpu"))
+
+    together = ws.Simulator(ws.finalize(scenes(), "cpu"), device="cpu")
+    starts = together.model.world_node_start
+    spin(together, [np.arange(starts[w], starts[w + 1]) for w in range(2)])
+    alone = []
+    for scene in scenes():
+        sim = ws.Simulator(scene, device="cpu")
+        spin(sim, [np.arange(sim.model.num_nodes)])
+        alone.append(sim)
+    for _ in range(20):
+        stats = together.step()
+        for sim in alone:
+            sim.step()
+    assert stats.worlds[0].newton_iterations == 2 and stats.worlds[1].newton_iterations == 1
+    q = together.state.positions()
+    for w, sim in enumerate(alone):
+        assert np.abs(q[starts[w]:starts[w + 1]] - sim.state.positions()).max() < 1e-12

@@ -319,14 +319,16 @@ class Newton:
         out = np.zeros(len(self.free_host))
         if "newton_moments" not in host:
             return out
-        for w in np.flatnonzero(self.free_host):
-            mom, mass = host["newton_moments"][w], self.world_mass[w]
-            c, p = mom[0:3] / mass, mom[9:12]
-            xx, yy, zz, xy, xz, yz = mom[3:9]
-            s = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) - mass * np.outer(c, c)  # about the centre
-            inertia = np.trace(s) * np.eye(3) - s
-            moment = mom[12:15] - np.cross(c, p)
-            out[w] = self.sim.mass_scale * (p @ p / mass + moment @ np.linalg.pinv(inertia) @ moment)
+        free = np.flatnonzero(self.free_host)
+        mom, mass = host["newton_moments"][free], self.world_mass[free]
+        c, p = mom[:, 0:3] / mass[:, None], mom[:, 9:12]
+        xx, yy, zz, xy, xz, yz = mom[:, 3:9].T
+        s = np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], 1)
+        s -= mass[:, None, None] * c[:, :, None] * c[:, None, :]  # second moments about the centre
+        inertia = np.trace(s, axis1=1, axis2=2)[:, None, None] * np.eye(3) - s
+        moment = mom[:, 12:15] - np.cross(c, p)
+        spin = np.einsum("wi,wij,wj->w", moment, np.linalg.pinv(inertia), moment)
+        out[free] = self.sim.mass_scale * (np.einsum("wi,wi->w", p, p) / mass + spin)
         return out
 
     def go_on(self) -> bool:
