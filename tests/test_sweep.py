@@ -200,3 +200,96 @@ def test_a_design_is_the_unit_of_failure(tmp_path, capsys):
         rows = list(csv.DictReader(f))
     assert [r["status"] for r in rows] == ["completed", "failed", "invalid"]
     assert "1 of 3 designs completed" in capsys.readouterr().out
+
+
+def read_rows(path) -> list[dict]:
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def test_a_stopped_sweep_resumes_where_it_stopped_and_keeps_its_table(beam, tmp_path, monkeypatch):
+    """Six designs, two per batch, stopped (Ctrl-C) in the third batch: the table holds the
+    four finished rows; the same command again runs the last two only, and its table equals an
+    uninterrupted run's. Rerunning a finished sweep runs nothing and erases nothing (before, a
+    rerun stopped after a batch left 2 rows of 8)."""
+    import warpsoft.io.sweep as sweep_module
+
+    designs = [{"young_modulus": e} for e in (1e6, 1.5e6, 2e6, 2.5e6, 3e6, 3.5e6)]
+    whole = sweep(beam, designs, batch=2, workers=1, out=tmp_path / "whole", solver="direct")
+    real, calls = sweep_module.run_designs, []
+
+    def stopping(scene_file, chunk, *args):
+        calls.append([r.params["young_modulus"] for r in chunk])
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(scene_file, chunk, *args)
+
+    monkeypatch.setattr(sweep_module, "run_designs", stopping)
+    out = tmp_path / "stopped"
+    with pytest.raises(KeyboardInterrupt):
+        sweep(beam, designs, batch=2, workers=1, out=out, solver="direct")
+    assert len(read_rows(out / "results.csv")) == 4 and not (out / ".lock").exists()
+    calls.clear()
+    resumed = sweep(beam, designs, batch=2, workers=1, out=out, solver="direct")
+    assert calls == [[3e6, 3.5e6]]  # only the designs it had not finished
+    assert read_rows(out / "results.csv") == [r | {"seconds": s["seconds"]} for r, s in
+                                              zip(read_rows(tmp_path / "whole" / "results.csv"),
+                                                  read_rows(out / "results.csv"), strict=True)]
+    assert [r.metrics for r in resumed] == [r.metrics for r in whole]
+    calls.clear()
+    sweep(beam, designs, batch=2, workers=1, out=out, solver="direct")
+    assert calls == [] and len(read_rows(out / "results.csv")) == 6
+
+
+def test_a_folder_holds_one_sweep_unless_told_and_one_writer(beam, tmp_path):
+    """Another sweep into a folder with results is refused (before, both exited 0 and one's rows
+    vanished), unless it appends (its designs take the next indices) or overwrites; a folder a
+    live process is writing is refused; a lock left by a process that is gone is taken over."""
+    from warpsoft.io.store import folder_lock
+
+    out = tmp_path / "out"
+    sweep(beam, [{"young_modulus": 1e6}, {"young_modulus": 2e6}], workers=1, out=out, solver="direct")
+    other = [{"young_modulus": 3e6}]
+    with pytest.raises(ws.SceneError, match=r"holds the results of another sweep .* --append .* --overwrite"):
+        sweep(beam, other, workers=1, out=out, solver="direct")
+    sweep(beam, other, workers=1, out=out, solver="direct", append=True)
+    rows = read_rows(out / "results.csv")
+    assert [r["design"] for r in rows] == ["0", "1", "2"] and rows[2]["young_modulus"] == "3000000.0"
+    sweep(beam, other, workers=1, out=out, solver="direct", overwrite=True)
+    assert [r["young_modulus"] for r in read_rows(out / "results.csv")] == ["3000000.0"]
+    with folder_lock(out), pytest.raises(ws.SceneError, match=r"is being written by process [0-9]+"):
+        sweep(beam, other, workers=1, out=out, solver="direct")
+    (out / ".lock").write_text("999999999")  # a writer that is gone
+    sweep(beam, other, workers=1, out=out, solver="direct")
+    assert not (out / ".lock").exists()
+
+
+def test_a_mesh_cache_that_cannot_write_turns_itself_off(tmp_path, monkeypatch):
+    """The cache only saves time: a full disk under it (np.savez raising ENOSPC) is a warning,
+    the cache is off for the rest of the run, and the sweep completes (before, it died)."""
+    import errno
+
+    import warpsoft.scene.shapes as shapes
+
+    path = tmp_path / "ball.py"
+    path.write_text('''
+import warpsoft as ws
+
+
+def build(radius=0.01):
+    scene = ws.Scene("ball", static=True, steps=1)
+    body = scene.add_body("ball", ws.mesh_shape(ws.Ball((0.0, 0.0, 0.0), radius), radius / 2),
+                          ws.Material(1e5, 0.3, 1000.0), element="corotational")
+    scene.fix(body, ws.InHalfSpace((0.0, 0.0, -0.5 * radius), (0.0, 0.0, -1.0)))
+    scene.add_probe("top", (0.0, 0.0, radius))
+    return scene
+''')
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(shapes.np, "savez", full)
+    with pytest.warns(UserWarning, match=r"mesh cache: cannot write .*No space left on device.*the cache is off"):
+        results = sweep(path, [{"radius": 0.01}, {"radius": 0.012}], workers=1, out=tmp_path / "out")
+    assert [r.status for r in results] == ["completed", "completed"]
+    assert not list((tmp_path / "out" / "mesh_cache").glob("*.npz"))

@@ -60,6 +60,11 @@ def _parser() -> argparse.ArgumentParser:
     sw.add_argument("--plot", default=None, metavar="METRIC",
                     help="plot this metric over the swept parameters (default: the first metric)")
     _batch_arguments(sw, batch=256, out="folder of results.csv, the plot and the mesh cache")
+    sw.add_argument("--append", action="store_true",
+                    help="--out holds another sweep's results: add these designs to its table")
+    sw.add_argument("--overwrite", action="store_true",
+                    help="clear --out's results first (by default the same command resumes, skipping the designs "
+                         "it finished)")
     op = sub.add_parser("optimize", help="search a scene's design space with Optuna for the best designs by its "
                                          "metrics, a batch of designs at a time; resumable; the best ones to USD")
     op.add_argument("--space", action="append", default=[], metavar="NAME=LO:HI[:log|:int] | NAME=[A,B,...]",
@@ -149,7 +154,8 @@ def sweep_command(args) -> int:
     swept = list(designs[0])
     results = sweep(args.scene, designs, steps=args.steps, batch=args.batch, device=args.device,
                     fixed=parse_params(args.param), workers=args.workers, out=args.out, progress=True,
-                    ray=args.ray, parquet=args.parquet, solver=args.solver, share_tolerance=args.share_tolerance)
+                    ray=args.ray, parquet=args.parquet, append=args.append, overwrite=args.overwrite,
+                    solver=args.solver, share_tolerance=args.share_tolerance)
     out = Path(args.out)
     print(f"warpsoft sweep: {sum(r.status == 'completed' for r in results)} of {len(results)} designs completed; "
           f"table: {out / 'results.csv'}")

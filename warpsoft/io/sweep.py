@@ -46,6 +46,7 @@ from ..model import finalize
 from ..processes import bind_to_parent
 from ..simulator import Simulator
 from .runner import build_scene, load_scene_module, parse_value
+from .store import ResultStore, fingerprint, folder_lock
 
 
 @dataclass
@@ -179,33 +180,64 @@ def premesh(scene_file: str | Path, designs: Sequence[dict], workers: int) -> No
 def sweep(scene_file: str | Path, designs: Sequence[dict], steps: int | None = None, batch: int = 256,
           device: str | None = None, fixed: dict | None = None, workers: int | None = None,
           out: str | Path | None = None, progress: bool = False, ray: bool | str = False, parquet: bool = False,
-          **options) -> list[DesignResult]:
+          append: bool = False, overwrite: bool = False, **options) -> list[DesignResult]:
     """Run every design of ``designs`` (scene parameters, each merged over ``fixed``) for ``steps``
     steps (by default the scene's, from each batch's first design), ``batch`` designs per model.
     ``workers`` processes mesh the designs first into the mesh cache (default: the CPU count; 1:
     none; no cache, no meshing ahead). ``ray``: run the batches as Ray tasks (True: the cluster
     of ``RAY_ADDRESS`` or a new one on this machine; a string: that cluster's address; see
-    :mod:`warpsoft.io.cluster`). ``options`` go to the :class:`Simulator`. With ``out``, writes
-    ``results.csv`` there (and ``results.parquet`` with ``parquet``) after each batch (see
-    :func:`write_table`). Returns one :class:`DesignResult` per design, in order."""
+    :mod:`warpsoft.io.cluster`). ``options`` go to the :class:`Simulator`.
+
+    With ``out``, the folder keeps every finished design's row as its batch ends
+    (:mod:`warpsoft.io.store`) and ``results.csv`` (and ``results.parquet`` with ``parquet``)
+    rewritten whole after each batch. The same command into the same folder skips the designs it
+    finished; another sweep's folder is refused unless ``append`` (its designs are added to that
+    table) or ``overwrite`` (its results are cleared). Returns one :class:`DesignResult` per
+    design, in order; a design finished by an earlier run has its row's values, not its
+    trajectories."""
     if not designs:
         raise SceneError("sweep: no design to run")
     designs = [dict(fixed or {}) | dict(d) for d in designs]
-    if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
+    if out is None:
+        with mesh_cache(None):
+            return evaluate(scene_file, designs, steps, batch, device, workers, ray, options)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    load_scene_module(scene_file)  # a missing scene file: said before the folder is touched
+    with folder_lock(out), mesh_cache(out):
+        store = ResultStore(out, fingerprint(scene_file, designs, steps, options), len(designs), append, overwrite)
+        todo = [k for k in range(len(designs)) if store.done(k) is None]
+        seen: set[int] = set()
 
-    def on_batch(results: list[DesignResult]) -> None:
-        if out is not None:
-            write_table(results, out / "results.csv")
-            if parquet:
-                write_table(results, out / "results.parquet")
-        if progress:
-            done = sum(r.status == "completed" for r in results)
-            print(f"warpsoft sweep: {len(results)}/{len(designs)} designs run, {done} completed", flush=True)
+        def on_batch(results: list[DesignResult]) -> None:
+            new = [r for r in results if r.index not in seen]
+            seen.update(r.index for r in new)
+            store.add([{"design": store.first + todo[r.index], "status": r.status, "steps": r.steps,
+                        "seconds": r.seconds, "params": r.params, "metrics": r.metrics, "error": r.error} for r in new])
+            for path in [out / "results.csv"] + ([out / "results.parquet"] if parquet else []):
+                write_rows(store.table(), path)
+            if progress:
+                done = sum(store.done(k) is not None for k in range(len(designs)))
+                failed = sum(store.done(k)["status"] != "completed" for k in range(len(designs))
+                             if store.done(k) is not None)
+                print(f"warpsoft sweep: {done}/{len(designs)} designs finished, {failed} of them failed",
+                      flush=True)
 
-    with mesh_cache(out):
-        return evaluate(scene_file, designs, steps, batch, device, workers, ray, options, on_batch)
+        if progress and len(todo) < len(designs):
+            print(f"warpsoft sweep: {len(designs) - len(todo)} of {len(designs)} designs finished in {out} already; "
+                  "running the others", flush=True)
+        ran = evaluate(scene_file, [designs[k] for k in todo], steps, batch, device, workers, ray, options,
+                       on_batch) if todo else []
+    by_index = {todo[r.index]: r for r in ran}
+    for r in ran:
+        r.index = todo[r.index]
+    return [by_index.get(k) or _from_row(k, store.done(k)) for k in range(len(designs))]
+
+
+def _from_row(index: int, row: dict) -> DesignResult:
+    """A design an earlier run finished, from its stored row."""
+    return DesignResult(index, dict(row["params"]), row["status"], row["error"] or None, int(row["steps"]),
+                        float(row["seconds"]), metrics=dict(row["metrics"]))
 
 
 @contextmanager
@@ -219,7 +251,7 @@ def mesh_cache(out: Path | None):
     try:
         yield
     finally:
-        del os.environ["WARPSOFT_MESH_CACHE"]
+        os.environ.pop("WARPSOFT_MESH_CACHE", None)  # (a cache that could not write has turned itself off)
 
 
 def evaluate(scene_file: str | Path, designs: Sequence[dict], steps: int | None, batch: int, device: str | None,
@@ -403,12 +435,16 @@ def write_rows(rows: Sequence[dict], path: str | Path) -> Path:
                 arrays[c] = pa.array(values)
             except (pa.ArrowInvalid, pa.ArrowTypeError):  # e.g. a parameter given as 3 and as "soft"
                 arrays[c] = pa.array([None if v is None else str(v) for v in values])
-        pq.write_table(pa.table(arrays), path)
+        tmp = path.with_name(path.name + ".tmp")
+        pq.write_table(pa.table(arrays), tmp)
+        os.replace(tmp, path)
         return path
-    with open(path, "w", newline="") as f:
+    tmp = path.with_name(path.name + ".tmp")  # (a kill while writing leaves the last whole table)
+    with open(tmp, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=columns, restval="")
         writer.writeheader()
         writer.writerows(rows)
+    os.replace(tmp, path)
     return path
 
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import warnings
+import zipfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -188,13 +190,23 @@ def _cached(name: str, key: str, make) -> TetMesh:
         return make()
     path = Path(cache) / f"{name}-{hashlib.sha1(key.encode()).hexdigest()[:16]}.npz"
     if path.is_file():
-        with np.load(path) as data:
-            return TetMesh(data["nodes"], data["tets"], name=name)
+        try:
+            with np.load(path) as data:
+                return TetMesh(data["nodes"], data["tets"], name=name)
+        except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:  # unreadable: meshed again
+            warnings.warn(f"mesh cache: {path} cannot be read ({exc}); meshing '{name}' again", stacklevel=2)
     mesh = make()
-    path.parent.mkdir(parents=True, exist_ok=True)
     part = path.with_name(f"{path.stem}.{os.getpid()}.part.npz")  # processes meshing at once (a sweep's)
-    np.savez(part, nodes=mesh.nodes, tets=mesh.tets)
-    os.replace(part, path)  # never read half-written
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(part, nodes=mesh.nodes, tets=mesh.tets)
+        os.replace(part, path)  # never read half-written
+    except OSError as exc:  # the cache only saves time: a full disk or a read-only folder turns it off
+        if part.parent.is_dir():
+            part.unlink(missing_ok=True)
+        os.environ.pop("WARPSOFT_MESH_CACHE", None)
+        warnings.warn(f"mesh cache: cannot write {path} ({exc}); the cache is off for the rest of this run",
+                      stacklevel=2)
     return mesh
 
 
