@@ -61,15 +61,18 @@ def test_a_study_runs_in_batches_resumes_and_exports_its_best_design(beam, tmp_p
     assert -report["points"]["tip"][-1][2] == pytest.approx(d.max(), rel=1e-9)  # run alone again: the same
     assert best[0].usd.stat().st_size > 1000 and (out / "history.png").stat().st_size > 5000
     assert json.loads((out / "best.json").read_text())[0]["trial"] == best[0].trial
-    # resumed: the 6 trials kept, 3 more; an interrupted run's unfinished trial asked again first
+    # resumed: the 6 trials kept, 4 more; an interrupted run's unfinished trial asked again first, and not
+    # counted toward the 10 (before, it used one up)
     left = optuna.load_study(study_name="warpsoft", storage=f"sqlite:///{out / 'study.db'}")
     left.ask({"young_modulus": optuna.distributions.FloatDistribution(5e5, 2e6, log=True),
               "tip_force": optuna.distributions.FloatDistribution(0.005, 0.01)})
     study, _ = optimize(beam, space, [("deflection", "maximize")], trials=10, out=out, batch=3, workers=1,
                         solver="direct")
     again = rows(out / "trials.csv")
-    assert again[:6] == table and [r["state"] for r in again[6:]] == ["FAIL"] + ["COMPLETE"] * 3
+    assert again[:6] == table and [r["state"] for r in again[6:]] == ["FAIL"] + ["COMPLETE"] * 4
+    assert again[6]["status"] == "interrupted" and "asked again" in again[6]["error"]
     assert again[7]["young_modulus"] == again[6]["young_modulus"]  # the unfinished design, run
+    assert not study.get_trials(states=(optuna.trial.TrialState.WAITING, optuna.trial.TrialState.RUNNING))
     with pytest.raises(ws.SceneError, match=r"another setup \(objectives: \[\['deflection', 'maximize'\]\] then, "
                                             r"\[\['deflection', 'minimize'\]\] now\)"):
         optimize(beam, space, [("deflection", "minimize")], trials=12, out=out, workers=1)

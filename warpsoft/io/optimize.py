@@ -147,9 +147,13 @@ def optimize(scene_file: str | Path, space: dict, objectives: Sequence[tuple[str
 
 
 def _finished(study) -> list:
+    """The trials that count toward ``trials``: complete, failed or pruned, but not those an
+    interrupted run left unfinished (their designs are asked again)."""
     from optuna.trial import TrialState
 
-    return study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.FAIL, TrialState.PRUNED))
+    cut = set(study.user_attrs.get("interrupted", []))
+    return [t for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.FAIL,
+                                                                TrialState.PRUNED)) if t.number not in cut]
 
 
 def _check_resume(study, setup: dict) -> None:
@@ -169,12 +173,18 @@ def _check_resume(study, setup: dict) -> None:
 
 
 def _ask_again_left_running(study) -> None:
-    """Trials an interrupted run left running: failed, and their designs asked again first."""
+    """Trials an interrupted run left running: closed as failed (Optuna has no other end for
+    them), recorded as interrupted so that they do not count toward ``trials``, and their
+    designs asked again first."""
     from optuna.trial import TrialState
 
+    cut = list(study.user_attrs.get("interrupted", []))
     for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
         study.enqueue_trial(t.params)
         study.tell(t.number, state=TrialState.FAIL)
+        cut.append(t.number)
+    if cut:
+        study.set_user_attr("interrupted", sorted(set(cut)))
 
 
 def _tell(study, trial, r: DesignResult, objectives: list[tuple[str, str]]) -> None:
@@ -200,11 +210,13 @@ def _tell(study, trial, r: DesignResult, objectives: list[tuple[str, str]]) -> N
 
 def trial_rows(study, objectives: list[tuple[str, str]]) -> list[dict]:
     """One row per trial: number, state, parameters, objectives, the other metrics, the reason of a failure."""
-    rows = []
+    rows, cut = [], set(study.user_attrs.get("interrupted", []))
     for t in study.get_trials(deepcopy=False):
         values = dict(zip([m for m, _ in objectives], t.values or [], strict=False))
-        rows.append({"trial": t.number, "state": t.state.name, "status": t.user_attrs.get("status", "")} | t.params
-                    | values | t.user_attrs.get("metrics", {}) | {"error": t.user_attrs.get("error", "")})
+        status = "interrupted" if t.number in cut else t.user_attrs.get("status", "")
+        error = "stopped before it finished; its design was asked again" if t.number in cut else ""
+        rows.append({"trial": t.number, "state": t.state.name, "status": status} | t.params
+                    | values | t.user_attrs.get("metrics", {}) | {"error": t.user_attrs.get("error", error)})
     return rows
 
 
