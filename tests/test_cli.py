@@ -328,3 +328,36 @@ def test_a_run_says_what_it_does_before_the_first_step(capsys):
     assert main(["run", CANTILEVER, "--steps", "1", "--param", "mesh_size=0.005"]) == 0
     err = capsys.readouterr().err
     assert "building" in err and "scene 'cantilever' built in" in err and "compiles the kernels" in err
+
+
+def test_a_full_disk_keeps_the_last_whole_usd_and_the_report_says_why(tmp_path, monkeypatch, capsys):
+    """The USD's third write meets a full disk: the run stops as failed, the report (still
+    writable) says so with the reason, the USD on disk is the last whole one and opens, and no
+    temporary file is left (before: a traceback, the report left 'running', a USD cut at 32 KiB)."""
+    import errno
+    import os
+    import types
+
+    from pxr import Usd
+
+    import warpsoft.io.usd as usd_module
+
+    writes = []
+
+    def replace(src, dst):
+        writes.append(src)
+        if len(writes) > 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        os.replace(src, dst)
+
+    monkeypatch.setattr(usd_module, "os", types.SimpleNamespace(replace=replace))
+    usd, rep = tmp_path / "beam.usda", tmp_path / "beam.json"
+    code = main(["run", CANTILEVER, "--steps", "6", "--device", "cpu", "--usd", str(usd), "--report", str(rep),
+                 "--param", "mesh_size=0.005", "--flush-every", "2", "--quiet"])
+    assert code == 2 and "No space left on device" in capsys.readouterr().err
+    d = json.loads(rep.read_text())
+    assert d["status"] == "failed" and "USD: cannot write" in d["error"] and "No space left" in d["error"]
+    assert d["steps"] >= 2
+    stage = Usd.Stage.Open(str(usd))
+    assert stage.GetPrimAtPath("/World/beam")
+    assert not [p.name for p in tmp_path.iterdir() if "tmp" in p.name]

@@ -22,6 +22,11 @@ class SimulationError(WarpsoftError, RuntimeError):
         self.worlds = worlds
 
 
+class OutputError(WarpsoftError, OSError):
+    """An output (the report, the USD) cannot be written (a full disk, a folder taken away); the
+    last whole file written before stays in place."""
+
+
 class LockingWarning(UserWarning):
     """A body left to the default linear tetrahedra at a Poisson ratio where they lock: in
     bending it comes out too stiff (a cantilever at nu 0.45: 16-20 %). Choose ``element=``."""

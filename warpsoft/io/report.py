@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import OutputError
 from ..simulator import Simulator, StepStats
 
 
@@ -164,10 +165,14 @@ class RunReport:
     def write(self, path: str | Path) -> Path:
         """Write the report as JSON, atomically (a reader, or a kill mid-write, never sees half a file)."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(self.to_dict(), indent=1))
-        os.replace(tmp, path)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp.write_text(json.dumps(self.to_dict(), indent=1))
+            os.replace(tmp, path)
+        except OSError as exc:  # the last whole report stays
+            tmp.unlink(missing_ok=True)
+            raise OutputError(f"report: cannot write {path}: {exc}") from exc
         return path
 
 

@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
 
-from ..errors import SceneError, WarpsoftError
+from ..errors import OutputError, SceneError, WarpsoftError
 from ..scene import Scene
 from ..simulator import Simulator
 from .report import RunReport
@@ -186,10 +186,18 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
         writer.write_rows(0, sim.constraint_geometry())
 
     def flush() -> None:
-        if writer is not None:
-            writer.save()
-        if report is not None:
-            rep.write(report)
+        """Both outputs, each whole or left as it was; the first that cannot be written is raised
+        (the run then stops as failed, and says why in whatever can still be written)."""
+        failed = None
+        for write in ([writer.save] if writer is not None else []) + ([lambda: rep.write(report)] if report else []):
+            try:
+                write()
+            except OutputError as exc:
+                failed = failed or exc
+                if rep.status == "running":
+                    rep.status, rep.error = "failed", str(exc)
+        if failed is not None:
+            raise failed
 
     failure = None
     iterator = range(steps)
@@ -223,7 +231,10 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
         finally:
             if rep.status == "running":  # an error of another kind: record it, then let it go on
                 rep.status, rep.error = "failed", "an unexpected error stopped the run (see the traceback)"
-            flush()
+            try:
+                flush()
+            except OutputError:  # (each output that can be written is; the others keep their last whole file)
+                pass
     if failure is not None:
         raise failure
     return rep

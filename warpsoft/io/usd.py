@@ -4,11 +4,12 @@ the contacts (points with their forces)."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import SceneError
+from ..errors import OutputError, SceneError
 from ..model import Model
 
 
@@ -32,7 +33,8 @@ class UsdWriter:
             raise SceneError(f"USD output: extension must be .usda, .usdc or .usd, got {str(path)!r}")
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path, self.model = path, model
-        self.stage = Usd.Stage.CreateNew(str(path))
+        path.with_name(f".{path.stem}.tmp{path.suffix}").unlink(missing_ok=True)  # a killed run's
+        self.stage = Usd.Stage.CreateInMemory(path.name)
         UsdGeom.SetStageUpAxis(self.stage, UsdGeom.Tokens.z)
         UsdGeom.SetStageMetersPerUnit(self.stage, 1.0)
         self.stage.SetTimeCodesPerSecond(1.0 / model.dt)
@@ -224,8 +226,17 @@ class UsdWriter:
         self.frames = max(self.frames, frame + 1)
 
     def save(self) -> Path:
+        """Write the stage: to a temporary file beside it, then renamed over it, so that a full
+        disk or a kill leaves the last whole file (and the next writer removes a stale temporary)."""
         self.stage.SetEndTimeCode(max(self.frames - 1, 0))
-        self.stage.GetRootLayer().Save()
+        tmp = self.path.with_name(f".{self.path.stem}.tmp{self.path.suffix}")
+        try:
+            if not self.stage.GetRootLayer().Export(str(tmp)):
+                raise OSError(f"USD could not export the stage to {tmp}")
+            os.replace(tmp, self.path)
+        except Exception as exc:  # (USD raises its own error types for a failed write)
+            tmp.unlink(missing_ok=True)
+            raise OutputError(f"USD: cannot write {self.path}: {exc}") from exc
         return self.path
 
 
