@@ -48,6 +48,8 @@ from ..simulator import Simulator
 from .runner import build_scene, load_scene_module, parse_value
 from .store import ResultStore, fingerprint, folder_lock
 
+_PROGRESS = {"on": False}  # set while a sweep with progress runs here: its batches show theirs (not in Ray tasks)
+
 
 @dataclass
 class DesignResult:
@@ -226,8 +228,12 @@ def sweep(scene_file: str | Path, designs: Sequence[dict], steps: int | None = N
         if progress and len(todo) < len(designs):
             print(f"warpsoft sweep: {len(designs) - len(todo)} of {len(designs)} designs finished in {out} already; "
                   "running the others", flush=True)
-        ran = evaluate(scene_file, [designs[k] for k in todo], steps, batch, device, workers, ray, options,
-                       on_batch) if todo else []
+        _PROGRESS["on"] = progress
+        try:
+            ran = evaluate(scene_file, [designs[k] for k in todo], steps, batch, device, workers, ray, options,
+                           on_batch) if todo else []
+        finally:
+            _PROGRESS["on"] = False
     by_index = {todo[r.index]: r for r in ran}
     for r in ran:
         r.index = todo[r.index]
@@ -362,8 +368,15 @@ def _step_worlds(scenes: list, results: list[DesignResult], steps: int, device: 
 
     record_probes()
     started = time.perf_counter()
+    iterator = range(steps)
+    if _PROGRESS["on"]:
+        from tqdm import tqdm
+
+        print(f"warpsoft sweep: a batch of {m.num_worlds} designs ({m.num_nodes} nodes) on {m.device}; its first "
+              "step compiles the kernels (once per machine: they are cached)...", flush=True)
+        iterator = tqdm(iterator, desc=f"batch of {m.num_worlds}", unit="step", disable=None, leave=False)
     try:
-        for _ in range(steps):
+        for _ in iterator:
             stats = sim.step()
             record_probes()
             for w, (r, ws) in enumerate(zip(results, stats.worlds, strict=True)):
