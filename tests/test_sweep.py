@@ -105,6 +105,7 @@ def test_the_sweep_command_writes_the_table_and_the_plot(beam, tmp_path, capsys)
     assert (out / "deflection.png").stat().st_size > 10_000
     said = capsys.readouterr().out
     assert "4 of 4 designs completed" in said and "a batch of 4 designs" in said  # (said before it compiles)
+    assert "4/4 designs finished, 0 of them failed" in said and "design-steps/s so far" in said
     assert main(["sweep", str(beam), "--out", str(out)]) == 2  # no design given: a clear error
     assert "give the designs" in capsys.readouterr().err
 

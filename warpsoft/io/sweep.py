@@ -175,7 +175,13 @@ def premesh(scene_file: str | Path, designs: Sequence[dict], workers: int) -> No
         return
     with ProcessPoolExecutor(max_workers=min(workers, len(designs)), mp_context=get_context("spawn"),
                              initializer=bind_to_parent, initargs=(os.getpid(),)) as pool:
-        list(pool.map(_build_for_cache, [str(scene_file)] * len(designs), designs))
+        built = pool.map(_build_for_cache, [str(scene_file)] * len(designs), designs)
+        if _PROGRESS["on"]:
+            from tqdm import tqdm
+
+            built = tqdm(built, total=len(designs), desc=f"meshing ({min(workers, len(designs))} processes)",
+                         unit="design", disable=None, leave=False)
+        list(built)
 
 
 # ---- the sweep -----------------------------------------------------------------------------
@@ -219,16 +225,19 @@ def sweep(scene_file: str | Path, designs: Sequence[dict], steps: int | None = N
             for path in [out / "results.csv"] + ([out / "results.parquet"] if parquet else []):
                 write_rows(store.table(), path)
             if progress:
-                done = sum(store.done(k) is not None for k in range(len(designs)))
-                failed = sum(store.done(k)["status"] != "completed" for k in range(len(designs))
-                             if store.done(k) is not None)
-                print(f"warpsoft sweep: {done}/{len(designs)} designs finished, {failed} of them failed",
-                      flush=True)
+                finished = [store.done(k) for k in range(len(designs)) if store.done(k) is not None]
+                failed = sum(row["status"] != "completed" for row in finished)
+                elapsed = time.perf_counter() - started
+                rate = sum(r.steps for r in results) / max(elapsed, 1e-9)
+                left = elapsed / len(seen) * (len(todo) - len(seen))
+                print(f"warpsoft sweep: {len(finished)}/{len(designs)} designs finished, {failed} of them failed; "
+                      f"{rate:,.0f} design-steps/s so far, about {left:,.0f} s left", flush=True)
 
         if progress and len(todo) < len(designs):
             print(f"warpsoft sweep: {len(designs) - len(todo)} of {len(designs)} designs finished in {out} already; "
                   "running the others", flush=True)
         _PROGRESS["on"] = progress
+        started = time.perf_counter()
         try:
             ran = evaluate(scene_file, [designs[k] for k in todo], steps, batch, device, workers, ray, options,
                            on_batch) if todo else []
