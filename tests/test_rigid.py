@@ -252,6 +252,7 @@ def test_two_worlds_of_one_scene_drop_their_own_cubes():
         assert np.allclose(both.rigid_poses(w)["cube"][1], alone.rigid_poses()["cube"][1], atol=1e-12)
 
 
+@pytest.mark.slow  # (800 steps: 13 s)
 def test_a_frictionless_cube_on_a_coarse_damped_slab_comes_to_rest():
     """A 10 g frictionless cube set on a damped slab one 10 mm element thick: the slab's coarse,
     dented surface pushes it sideways (its contacts' normals tilt by the dents) into a shallow
