@@ -21,11 +21,13 @@ OUTSIDE = 0.5  # default tolerance outside the mesh, in mean edge lengths of the
 
 
 def barycentric(nodes: np.ndarray, tets: np.ndarray, point: np.ndarray) -> np.ndarray:
-    """Barycentric coordinates of ``point`` (m) in every element of ``tets``, shape ``(m, 4)``."""
-    x = nodes[tets]
-    Dm = np.stack([x[:, 1] - x[:, 0], x[:, 2] - x[:, 0], x[:, 3] - x[:, 0]], axis=2)
-    l123 = np.linalg.solve(Dm, (point - x[:, 0])[:, :, None])[:, :, 0]
-    return np.concatenate([1.0 - l123.sum(axis=1, keepdims=True), l123], axis=1)
+    """Barycentric coordinates of ``point`` (m) in the elements ``tets``: ``(..., 4)`` for
+    ``tets`` ``(..., 4)`` and ``point`` ``(3,)`` or broadcasting against ``tets``' leading shape."""
+    x = nodes[tets]  # (..., 4, 3)
+    Dm = np.stack([x[..., 1, :] - x[..., 0, :], x[..., 2, :] - x[..., 0, :], x[..., 3, :] - x[..., 0, :]], axis=-1)
+    rhs = np.broadcast_to(point - x[..., 0, :], x[..., 0, :].shape)
+    l123 = np.linalg.solve(Dm, rhs[..., None])[..., 0]
+    return np.concatenate([1.0 - l123.sum(axis=-1, keepdims=True), l123], axis=-1)
 
 
 def _outside_distance(nodes: np.ndarray, tet: np.ndarray, lam: np.ndarray, point: np.ndarray) -> float:
@@ -119,10 +121,7 @@ def ball_weights(nodes: np.ndarray, tets: np.ndarray, center, radius: float,
     tree = cKDTree(nodes[tets].mean(axis=1))
     _, cand = tree.query(samples, k=min(CANDIDATES, len(tets)))
     cand = np.minimum(cand.reshape(len(samples), -1), len(tets) - 1)
-    x = nodes[tets[cand]]  # (samples, candidates, 4, 3)
-    Dm = np.stack([x[..., 1, :] - x[..., 0, :], x[..., 2, :] - x[..., 0, :], x[..., 3, :] - x[..., 0, :]], axis=-1)
-    l123 = np.linalg.solve(Dm, (samples[:, None, :] - x[..., 0, :])[..., None])[..., 0]
-    lam = np.concatenate([1.0 - l123.sum(axis=-1, keepdims=True), l123], axis=-1)
+    lam = barycentric(nodes, tets[cand], samples[:, None, :])  # (samples, candidates, 4)
     best = np.argmax(lam.min(axis=-1), axis=1)
     rows = np.arange(len(samples))
     lam, elem = lam[rows, best], cand[rows, best]

@@ -99,7 +99,7 @@ class ResultStore:
             for name in ("designs.jsonl", "sweep.json", "results.csv", "results.parquet"):
                 (out / name).unlink(missing_ok=True)
         parts = json.loads(manifest.read_text())["sweeps"] if manifest.exists() else []
-        if not parts and self.lines.exists() is False and (out / "results.csv").exists():
+        if not parts and not self.lines.exists() and (out / "results.csv").exists():
             raise SceneError(f"sweep: {out} holds a results.csv this sweep did not write; give --overwrite to "
                              "replace it, or another --out")
         mine = next((p for p in parts if p["fingerprint"] == key), None)

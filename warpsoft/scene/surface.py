@@ -16,6 +16,7 @@ from functools import cache
 import numpy as np
 
 from ..errors import SceneError
+from .mesh import KEYED_NODES, TET_EDGES, TET_FACES, triangle_keys
 
 # A 6-node face: corners 0-2, then the mid-edges of (0, 1), (1, 2), (2, 0); its four flat
 # sub-triangles, oriented as the face
@@ -68,7 +69,6 @@ def quadratic_volume_terms() -> tuple[np.ndarray, np.ndarray]:
 
 def _local_faces() -> np.ndarray:
     """A 10-node element's four faces as 6-node faces: ``(4, 6)`` local node ids."""
-    from .mesh import TET_EDGES, TET_FACES
 
     def mid(a, b):
         return 4 + next(e for e, (i, j) in enumerate(TET_EDGES) if {i, j} == {a, b})
@@ -76,25 +76,20 @@ def _local_faces() -> np.ndarray:
     return np.array([[a, b, c, mid(a, b), mid(b, c), mid(c, a)] for a, b, c in TET_FACES])
 
 
-def _keys(tris: np.ndarray, n: int) -> np.ndarray:
-    """One number per triangle ``(..., 3)`` of node ids below ``n``, the same in any node order."""
-    k = np.sort(tris, axis=-1).astype(np.int64)
-    return (k[..., 0] * n + k[..., 1]) * n + k[..., 2]
-
-
 def quadratic_faces(mesh, tris: np.ndarray, label: str, partial: bool = False) -> np.ndarray:
     """The 6-node faces ``(k, 6)`` (body node ids, corners then mid-edges, oriented as ``tris``)
     whose four sub-triangles ``tris`` holds. ``tris`` must cover whole faces of the quadratic
     ``mesh``, or with ``partial`` the faces it covers in part are left out."""
     n = mesh.num_nodes
-    if n >= 2**21:  # (a triangle's key, its sorted ids in base n, must fit 63 bits)
-        raise SceneError(f"{label}: quadratic meshes of 2**21 nodes or more are not supported, got {n}")
+    if n >= KEYED_NODES:  # (a triangle's key must fit 63 bits)
+        raise SceneError(f"{label}: quadratic meshes of {KEYED_NODES} nodes or more are not supported, got {n}")
     tris = np.asarray(tris, dtype=np.int64)
     faces = mesh.quadratic.astype(np.int64)[:, _local_faces()].reshape(-1, 6)
-    faces = faces[np.unique(_keys(faces[:, :3], n), return_index=True)[1]]  # a face shared by two elements: once
-    wanted = _keys(tris, n)
+    # a face shared by two elements: once
+    faces = faces[np.unique(triangle_keys(faces[:, :3], n), return_index=True)[1]]
+    wanted = triangle_keys(tris, n)
     order = np.argsort(wanted)
-    sub_keys = _keys(faces[:, FACE_SUBTRIANGLES], n)  # (faces, 4)
+    sub_keys = triangle_keys(faces[:, FACE_SUBTRIANGLES], n)  # (faces, 4)
     held = np.isin(sub_keys, wanted)
     faces, sub_keys = faces[held.all(axis=1)], sub_keys[held.all(axis=1)]
     missing = ~np.isin(wanted, sub_keys)
