@@ -15,7 +15,7 @@ def bar_with_weight(mass=0.05, gravity=(0.0, 0.0, -G), fixed=True, nu=0.0, densi
     """A square bar standing on z in [0, L], a rigid cube glued under its bottom face."""
     scene = ws.Scene("hang", gravity=gravity, dt=0.01)
     bar = scene.add_body("bar", ws.mesh_shape(ws.shapes.Box((-SIDE / 2, -SIDE / 2, 0), (SIDE, SIDE, L)), 0.005),
-                         ws.Material(E, nu, density))
+                         ws.Material(E, nu, density), element="corotational")
     if fixed:
         scene.fix(bar, ws.InBox((-1, -1, L - 1e-4), (1, 1, 1)))
     weight = scene.add_rigid("weight", ws.obstacles.Box((0, 0, -SIDE / 2), (SIDE,) * 3), mass=mass, **rigid)

@@ -33,7 +33,7 @@ def grid_cantilever(static=True, gravity=0.0, load=None, E=1e6, dt=0.01, divisio
     L, h = 0.1, 0.01
     scene = ws.Scene("beam", gravity=(0, 0, -gravity), static=static, dt=dt)
     beam = scene.add_body("beam", ws.box_grid((0, -h / 2, -h / 2), (L, h / 2, h / 2), divisions),
-                          ws.Material(E, 0.3, 1000.0))
+                          ws.Material(E, 0.3, 1000.0), element="corotational")
     scene.fix(beam, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     scene.set_damping(*damping)
     if load is not None:

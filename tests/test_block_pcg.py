@@ -16,7 +16,7 @@ RUBBER = ws.Material(1e6, 0.45, 1000.0)
 def bent_beam():
     """A dynamic beam bent by gravity and a tip load."""
     scene = ws.Scene("bent", gravity=(0, 0, -9.81), dt=0.02)
-    body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), RUBBER)
+    body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), RUBBER, element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     scene.add_force(body, ws.OnPlane((0.1, 0, 0), (1, 0, 0)), (0, 0, -2.0))
     return ws.Simulator(scene, solver="pcg", tolerance=1e-12)
@@ -106,7 +106,7 @@ def test_two_worlds_iterate_as_alone(block):
     the extrapolated start (3 x - 3 last + before), which magnifies it."""
     def scene(load):
         s = ws.Scene("bent", gravity=(0, 0, -9.81), dt=0.02)
-        body = s.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), RUBBER)
+        body = s.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), RUBBER, element="corotational")
         s.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
         s.add_force(body, ws.OnPlane((0.1, 0, 0), (1, 0, 0)), (0, 0, load))
         s.add_cable("c", body, points=[(0.05, 0.005, 0.009), (0.095, 0.005, 0.009)],
@@ -134,7 +134,7 @@ def cabled_bar(young_modulus: float) -> ws.Scene:
     compliance columns are nearly equal (a near-dependent block)."""
     scene = ws.Scene("cabled", gravity=(0, 0, -9.81), dt=0.01)
     body = scene.add_body("bar", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (4, 1, 1)),
-                          ws.Material(young_modulus, 0.45, 1000.0))
+                          ws.Material(young_modulus, 0.45, 1000.0), element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     for c in range(4):
         scene.add_cable(f"cable{c}", body, points=[(0.05, 0.002 * c, 0.009), (0.095, 0.002 * c, 0.009)],

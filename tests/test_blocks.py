@@ -15,7 +15,7 @@ def beam(young_modulus=1e6, poisson_ratio=0.45, cells=20, static=True):
     its stiffness alone, proportional to Young's modulus)."""
     scene = ws.Scene("beam", gravity=(0, 0, -9.81), dt=0.02, static=static)
     body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (cells, 2, 2)),
-                          ws.Material(young_modulus, poisson_ratio, 1000.0))
+                          ws.Material(young_modulus, poisson_ratio, 1000.0), element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     scene.add_force(body, ws.OnPlane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.2))
     return scene

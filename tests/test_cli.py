@@ -145,7 +145,8 @@ def test_usd_places_turned_and_long_obstacles(tmp_path):
     from warpsoft.io.usd import UsdWriter
 
     scene = ws.Scene("s", dt=0.01)
-    scene.add_body("b", ws.box_grid((0, 0, 0.1), (0.01, 0.01, 0.11), (1, 1, 1)), ws.Material(1e5, 0.3, 1000.0))
+    scene.add_body("b", ws.box_grid((0, 0, 0.1), (0.01, 0.01, 0.11), (1, 1, 1)), ws.Material(1e5, 0.3, 1000.0),
+                   element="corotational")
     c, s_ = np.cos(0.5), np.sin(0.5)
     box = ws.obstacles.Box((0.1, 0.2, 0.0), (0.2, 0.1, 0.05), ((c, -s_, 0.0), (s_, c, 0.0), (0.0, 0.0, 1.0)))
     cyl = ws.obstacles.Cylinder((0.0, 0.0, 0.0), (0.1, 0.1, 0.05), 0.02)

@@ -14,7 +14,8 @@ MAT = ws.Material(1e6, 0.3, 1000.0)
 
 def beam(static=True, divisions=(20, 2, 2)):
     scene = ws.Scene("beam", static=static, dt=0.01)
-    body = scene.add_body("beam", ws.box_grid((0, -H / 2, -H / 2), (L, H / 2, H / 2), divisions), MAT)
+    body = scene.add_body("beam", ws.box_grid((0, -H / 2, -H / 2), (L, H / 2, H / 2), divisions), MAT,
+                          element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     return scene, body
 
@@ -70,7 +71,7 @@ def test_compliance_from_the_factor_equals_the_solved_columns():
     equal what the columns give, on a world of cables and an effector beside a world where a
     soft bar presses on the floor with friction (contact rows on its nodes)."""
     contact = ws.Scene("press", gravity=(0, 0, -9.81), dt=0.01)
-    bar = contact.add_body("bar", ws.box_grid((0, -H / 2, 0), (L, H / 2, H), (10, 2, 2)), MAT)
+    bar = contact.add_body("bar", ws.box_grid((0, -H / 2, 0), (L, H / 2, H), (10, 2, 2)), MAT, element="corotational")
     contact.add_obstacle("floor", ws.obstacles.Floor(), mu=0.5)
     contact.add_force(bar, ws.InBox((-1, -1, H - 1e-6), (1, 1, 1)), (0.0, 0.0, -5.0))
     contact.add_cable("c", bar, points=[(x, 0, H / 2) for x in (0.03, 0.06, 0.095)], pull_point=(-0.01, 0, H / 2),
@@ -262,7 +263,7 @@ def anchored_bar_shortening(divisions: int, anchor_radius: float) -> float:
     ``T L / (E A)`` of the 9 cm between clamp and fastening."""
     scene = ws.Scene("bar", static=True, gravity=(0.0, 0.0, 0.0), steps=1)
     body = scene.add_body("bar", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (10 * divisions, divisions, divisions)),
-                          ws.Material(1e5, 0.3, 1000.0))
+                          ws.Material(1e5, 0.3, 1000.0), element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0), tol=1e-9))
     scene.add_cable("c", body, points=[(0.09, 0.005, 0.005)], pull_point=(-0.01, 0.005, 0.005), mode="force",
                     value=0.01, anchor_radius=anchor_radius)
@@ -286,7 +287,8 @@ def test_a_cable_fastened_over_an_anchor_converges_under_refinement_where_a_poin
 
 def test_bad_anchors_are_named():
     scene = ws.Scene("bar", static=True, steps=1)
-    body = scene.add_body("bar", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (10, 1, 1)), ws.Material(1e5, 0.3, 1000.0))
+    body = scene.add_body("bar", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (10, 1, 1)), ws.Material(1e5, 0.3, 1000.0),
+                          element="corotational")
     for bad in (-1e-3, float("nan"), "wide"):
         with pytest.raises(ws.SceneError, match=r"cable 'c': anchor_radius must be a finite length >= 0 m"):
             scene.add_cable("c", body, points=[(0.09, 0.005, 0.005)], pull_point=(-0.01, 0.005, 0.005),
@@ -297,7 +299,8 @@ def test_an_anchored_cable_row_is_its_shortening_gradient():
     """Through two points, the last fastened over 3 mm: ``H`` is ``d delta / dq`` (central
     differences along a random direction), at rest and bent."""
     scene = ws.Scene("bar", static=True, gravity=(0.0, 0.0, 0.0), steps=1)
-    body = scene.add_body("bar", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), ws.Material(1e5, 0.3, 1000.0))
+    body = scene.add_body("bar", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), ws.Material(1e5, 0.3, 1000.0),
+                          element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0), tol=1e-9))
     scene.add_cable("c", body, points=[(0.05, 0.002, 0.008), (0.09, 0.005, 0.005)], pull_point=(-0.01, 0.002, 0.008),
                     anchor_radius=0.003)

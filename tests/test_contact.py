@@ -87,7 +87,7 @@ def test_a_point_on_a_mesh_gets_its_face_normal_not_rounding_noise():
 def block(gravity=(0.0, 0.0, -G), capacity=64, damping=1.0, mu=0.0):
     scene = ws.Scene("block", gravity=gravity, dt=0.005)
     body = scene.add_body("block", ws.box_grid((-0.01, -0.01, 0.001), (0.01, 0.01, 0.011), (5, 5, 3)),
-                          ws.Material(1e5, 0.3, 1000.0))
+                          ws.Material(1e5, 0.3, 1000.0), element="corotational")
     scene.set_damping(damping, 0.0)
     scene.add_obstacle("floor", ws.obstacles.Floor(), mu=mu)
     scene.set_contacts(capacity)
@@ -387,7 +387,7 @@ def test_a_soft_slab_dropped_on_a_bumpy_floor_with_hundreds_of_contacts_stays_fi
     tilting them by 3.6 degrees at most)."""
     scene = ws.Scene("slab", gravity=(0.0, 0.0, -G), dt=0.005)
     scene.add_body("slab", ws.box_grid((-0.03, -0.03, 0.0015), (0.03, 0.03, 0.0065), (20, 20, 1)),
-                   ws.Material(5e3, 0.3, 1000.0))
+                   ws.Material(5e3, 0.3, 1000.0), element="corotational")
     scene.set_damping(1.0, 0.0)
     floor = bumpy_floor()
     scene.add_obstacle("bumps", floor, mu=0.3)
@@ -448,7 +448,7 @@ def test_a_body_starting_inside_an_obstacle_or_an_inward_mesh_is_an_error():
     def scene_with(bottom: float, name: str, shape) -> ws.Scene:
         scene = ws.Scene("start", gravity=(0.0, 0.0, 0.0), dt=0.005)
         scene.add_body("block", ws.box_grid((-0.01, -0.01, bottom), (0.01, 0.01, bottom + 0.01), (5, 5, 3)),
-                       ws.Material(1e5, 0.3, 1000.0))
+                       ws.Material(1e5, 0.3, 1000.0), element="corotational")
         scene.add_obstacle(name, shape)
         return scene
 

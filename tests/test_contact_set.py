@@ -26,7 +26,7 @@ def sliding_block(scene_module):
     """A soft block on the floor with gravity tilted by 17 degrees and mu = 0.5: it sticks."""
     scene = ws.Scene("block", gravity=(0.3 * G, 0.0, -G), dt=0.005)
     scene.add_body("block", ws.box_grid((-0.01, -0.01, 0.0005), (0.01, 0.01, 0.0105), (5, 5, 3)),
-                   ws.Material(1e5, 0.3, 1000.0))
+                   ws.Material(1e5, 0.3, 1000.0), element="corotational")
     scene.set_damping(1.0, 0.0)
     scene.add_obstacle("floor", ws.obstacles.Floor(), mu=0.5, contact_distance=0.002)
     scene.set_contacts(64)

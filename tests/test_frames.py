@@ -13,7 +13,7 @@ from warpsoft.errors import SceneError
 def bar_scene(motion, static=True):
     scene = ws.Scene("bar", static=static, dt=0.01)
     bar = scene.add_body("bar", ws.mesh_shape(ws.shapes.Box((0, 0, 0), (0.05, 0.01, 0.01)), 0.005),
-                         ws.Material(1e5, 0.3, 1000.0))
+                         ws.Material(1e5, 0.3, 1000.0), element="corotational")
     scene.fix(bar, ws.InBox((-1, -1, -1), (0.001, 1, 1)), motion=motion)
     return scene
 

@@ -70,7 +70,7 @@ def test_worlds_that_turn_abruptly_start_from_the_last_solution(scene_module):
     model extrapolates nothing."""
     block = ws.Scene("block", gravity=(0.0, 0.0, -9.81), dt=0.005)
     block.add_body("block", ws.box_grid((-0.01, -0.01, 0.0005), (0.01, 0.01, 0.0105), (3, 3, 2)),
-                   ws.Material(1e5, 0.3, 1000.0))
+                   ws.Material(1e5, 0.3, 1000.0), element="corotational")
     block.add_obstacle("floor", ws.obstacles.Floor(), mu=0.5, contact_distance=0.002)
     finger = scene_module("scenes/finger.py").build(mesh_size=0.01)
     assert ws.Simulator(finger, solver="pcg").guess.held.numpy().tolist() == [1]

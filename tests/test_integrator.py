@@ -76,7 +76,7 @@ def cable_bar(static: bool, integrator: str = "implicit_euler") -> ws.Scene:
     not resolve, and mass damping alone leaves them ringing at 0.02-0.04 m/s after 300 steps)."""
     scene = ws.Scene("bar", static=static, dt=0.01, integrator=integrator, steps=1)
     bar = scene.add_body("bar", ws.box_grid((0.0, -0.005, -0.005), (0.04, 0.005, 0.005), (4, 1, 1)),
-                         ws.Material(1e5, 0.3, 1000.0))
+                         ws.Material(1e5, 0.3, 1000.0), element="corotational")
     scene.fix(bar, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9))
     scene.add_cable("cable", bar, points=[(0.04, 0.0, -0.005)], pull_point=(0.04, 0.0, -0.05), mode="force",
                     value=0.05)
@@ -118,7 +118,7 @@ def spinning_cube(dt: float = 5e-4) -> ws.Scene:
     """A free 2 cm cube of 1 MPa rubber in zero gravity, nothing fixed, no damping."""
     scene = ws.Scene("spin", gravity=(0, 0, 0), dt=dt)
     scene.add_body("cube", ws.box_grid((-0.01, -0.01, -0.01), (0.02, 0.02, 0.02), (2, 2, 2)),
-                   ws.Material(1e6, 0.45, 1000.0))
+                   ws.Material(1e6, 0.45, 1000.0), element="corotational")
     return scene
 
 

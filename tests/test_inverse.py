@@ -137,7 +137,8 @@ def test_two_identical_cables_reach_the_target_with_the_device_qp_as_with_piqp(s
 
 def test_inverse_scene_needs_a_target():
     scene = ws.Scene("s", static=True)
-    body = scene.add_body("b", ws.box_grid((0, 0, 0), (0.05, 0.01, 0.01), (5, 1, 1)), ws.Material(1e5, 0.3))
+    body = scene.add_body("b", ws.box_grid((0, 0, 0), (0.05, 0.01, 0.01), (5, 1, 1)), ws.Material(1e5, 0.3),
+                          element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     scene.add_cable("c", body, points=[(0.05, 0.005, 0.005)], pull_point=(-0.01, 0.005, 0.005))
     scene.add_effector("e", (0.05, 0.005, 0.005))
@@ -148,7 +149,8 @@ def test_inverse_scene_needs_a_target():
 
 def test_qp_choice_errors_are_named():
     scene = ws.Scene("s", static=True)
-    body = scene.add_body("b", ws.box_grid((0, 0, 0), (0.05, 0.01, 0.01), (5, 1, 1)), ws.Material(1e5, 0.3))
+    body = scene.add_body("b", ws.box_grid((0, 0, 0), (0.05, 0.01, 0.01), (5, 1, 1)), ws.Material(1e5, 0.3),
+                          element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     for k in range(17):
         scene.add_cable(f"c{k}", body, points=[(0.05, 0.005, 0.005)], pull_point=(-0.01, 0.005, 0.005))

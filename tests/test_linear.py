@@ -17,7 +17,7 @@ RUBBER = ws.Material(1e6, 0.45, 1000.0)
 
 def bent_beam(static=False):
     scene = ws.Scene("bent", gravity=(0, 0, -9.81), dt=0.02, static=static)
-    body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), RUBBER)
+    body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (20, 2, 2)), RUBBER, element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     scene.add_force(body, ws.OnPlane((0.1, 0, 0), (1, 0, 0)), (0, 0, -0.2))
     return scene

@@ -125,7 +125,7 @@ def test_softrobots_finger_stl_is_filled_with_tetrahedra_that_step(reference_dir
     assert fine.volume == pytest.approx(coarse.volume, rel=0.01) and coarse.volume == pytest.approx(1.8455e-5, rel=0.01)
     assert ws.mesh_surface(reference_dir / "finger.stl", 0.006).num_elements == coarse.num_elements  # from the cache
     scene = ws.Scene("finger", dt=0.01)
-    body = scene.add_body("finger", coarse, ws.Material(5e5, 0.45, 1000.0))
+    body = scene.add_body("finger", coarse, ws.Material(5e5, 0.45, 1000.0), element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))  # its base, at x = 0
     sim = ws.Simulator(scene, solver="direct")
     for _ in range(3):

@@ -63,7 +63,7 @@ def pressed_beam(inverse: bool = True) -> ws.Scene:
     rigid ball; inverse: its tip is asked to go 2 cm down in 0.1 s (the ball is in the way)."""
     scene = ws.Scene("press", static=True, dt=0.01, steps=10)
     body = scene.add_body("beam", ws.box_grid((0, -0.005, -0.005), (0.06, 0.005, 0.005), (12, 2, 2)),
-                          ws.Material(2e5, 0.3))
+                          ws.Material(2e5, 0.3), element="corotational")
     scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
     for name, z in (("top", 0.004), ("bottom", -0.004)):
         path = [(x, 0.0, z) for x in (0.015, 0.03, 0.045, 0.058)]

@@ -44,13 +44,13 @@ def drop_scene(drop=0.05, mu=0.5, soft_floor=False):
     scene = ws.Scene("drop", gravity=(0, 0, -G), dt=0.01)
     if soft_floor:  # a soft slab on the floor, held at its bottom, the cube on it
         slab = scene.add_body("slab", ws.mesh_shape(ws.shapes.Box((-0.03, -0.03, 0), (0.06, 0.06, 0.01)), 0.005),
-                              ws.Material(5e4, 0.3, 1000.0))
+                              ws.Material(5e4, 0.3, 1000.0), element="corotational")
         scene.fix(slab, ws.InBox((-1, -1, -1), (1, 1, 1e-4)))
         scene.set_damping(1.0, 0.0)
         base = 0.01
     else:  # a soft pad aside (a scene has a soft body), held above the floor
         pad = scene.add_body("pad", ws.mesh_shape(ws.shapes.Box((0.1, 0, 0.01), (0.02, 0.02, 0.01)), 0.005),
-                             ws.Material(1e5, 0.3, 1000.0))
+                             ws.Material(1e5, 0.3, 1000.0), element="corotational")
         scene.fix(pad, ws.InBox((-1, -1, -1), (1, 1, 0.0101)))
         base = 0.0
     if not soft_floor:  # (the slab is held: its bottom needs no floor)
@@ -264,7 +264,7 @@ def test_a_frictionless_cube_on_a_coarse_damped_slab_comes_to_rest():
     Gauss-Seidel converged to 1e-12, and with every rigid point's row kept)."""
     scene = ws.Scene("rest", gravity=(0, 0, -G), dt=0.01)
     slab = scene.add_body("slab", ws.mesh_shape(ws.shapes.Box((-0.03, -0.03, 0), (0.06, 0.06, 0.01)), 0.01),
-                          ws.Material(5e4, 0.3, 1000.0))
+                          ws.Material(5e4, 0.3, 1000.0), element="corotational")
     scene.fix(slab, ws.InBox((-1, -1, -1), (1, 1, 1e-4)))
     scene.set_damping(1.0, 0.0)
     scene.add_rigid("cube", ws.obstacles.Box((0, 0, 0.0230), (0.025,) * 3), density=640.0, mu=0.0)

@@ -64,7 +64,7 @@ def test_two_pieces_of_one_body_collide_and_keep_their_momentum():
     do not pass through each other, and the impact adds no kinetic energy."""
     mesh, n_lower = two_blocks()
     scene = ws.Scene("throw", dt=0.005)
-    body = scene.add_body("blocks", mesh, ws.Material(2e4, 0.3, 1000.0))
+    body = scene.add_body("blocks", mesh, ws.Material(2e4, 0.3, 1000.0), element="corotational")
     scene.add_self_contact(body, contact_distance=0.0003)
     scene.set_contacts(64)
     sim = ws.Simulator(scene, device="cpu")
@@ -93,7 +93,7 @@ def test_friction_holds_the_upper_piece_below_coulombs_threshold(angle, mu, slid
     mesh, n_lower = two_blocks(gap=0.0003, n=2)
     a = np.radians(angle)
     scene = ws.Scene("tilted", gravity=(G * np.sin(a), 0.0, -G * np.cos(a)), dt=0.005)
-    body = scene.add_body("blocks", mesh, ws.Material(5e4, 0.3, 1000.0))
+    body = scene.add_body("blocks", mesh, ws.Material(5e4, 0.3, 1000.0), element="corotational")
     scene.set_damping(20.0, 0.0)
     scene.fix(body, ws.InBox((-1, -1, -1), (1, 1, 1e-6)))
     scene.add_self_contact(body, mu=mu, contact_distance=0.0001)
@@ -158,8 +158,8 @@ def gap_faces(length=0.115, chambers=6, gap=0.002, base=0.01) -> list[float]:
 def test_self_contact_input_is_checked():
     mesh, _ = two_blocks()
     scene = ws.Scene("bad")
-    body = scene.add_body("b", mesh, ws.Material(1e5, 0.3, 1000.0))
-    other = ws.Scene("other").add_body("c", mesh, ws.Material(1e5, 0.3, 1000.0))
+    body = scene.add_body("b", mesh, ws.Material(1e5, 0.3, 1000.0), element="corotational")
+    other = ws.Scene("other").add_body("c", mesh, ws.Material(1e5, 0.3, 1000.0), element="corotational")
     with pytest.raises(SceneError, match="friction coefficient mu must be >= 0"):
         scene.add_self_contact(body, mu=-0.1)
     with pytest.raises(SceneError, match="contact_distance must be > 0 m"):

@@ -32,7 +32,6 @@ def _init_warp_without_driver_warning() -> None:
 _init_warp_without_driver_warning()
 
 from .errors import (  # noqa: E402
-    LockingWarning,
     MeshError,
     OutputError,
     SceneError,
@@ -76,7 +75,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Ball", "Box", "Cone", "Control", "ConvergenceWarning", "Cylinder", "HalfSpace", "InBox", "InHalfSpace", "InSphere",
-    "LockingWarning", "Material", "MeshError", "Model", "OnPlane", "OutputError",
+    "Material", "MeshError", "Model", "OnPlane", "OutputError",
     "Plane", "Ramp", "Region", "Scene", "SceneError", "SimulationError", "Simulator", "Sphere", "State", "StepStats",
     "TetMesh", "UserCodeError", "WarpsoftError", "WorldStats", "box_grid", "finalize", "load_mesh", "mesh_shape",
     "mesh_surface", "obstacles", "regions", "rotation_about", "save_mesh", "shapes", "waypoints",

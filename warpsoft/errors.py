@@ -27,11 +27,6 @@ class OutputError(WarpsoftError, OSError):
     last whole file written before stays in place."""
 
 
-class LockingWarning(UserWarning):
-    """A body left to the default linear tetrahedra at a Poisson ratio where they lock: in
-    bending it comes out too stiff (a cantilever at nu 0.45: 16-20 %). Choose ``element=``."""
-
-
 class UserCodeError(SceneError):
     """The scene's own code (a schedule, a target, a load function) raised an exception; the
     message names the component, the time and the original error (chained as ``__cause__``)."""

@@ -21,7 +21,7 @@ def build(height=0.03, width=0.02, young_modulus=1e5, poisson_ratio=0.3, load=0.
     shape = ws.shapes.Box((0.0, 0.0, 0.0), (width / 2, width / 2, height))
     scene = ws.Scene("column", dt=dt, steps=80)
     column = scene.add_body("column", ws.mesh_shape(shape, h, name="column"),
-                            ws.Material(young_modulus, poisson_ratio, density))
+                            ws.Material(young_modulus, poisson_ratio, density), element="corotational")
     scene.set_damping(damping, 0.0)
     scene.fix(column, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9), axes="x")  # symmetry planes
     scene.fix(column, ws.OnPlane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), tol=1e-9), axes="y")

@@ -30,7 +30,7 @@ def build(radius=0.01, young_modulus=1e5, poisson_ratio=0.3, load=0.05, mesh_siz
     shape = ws.shapes.Ball((0.0, 0.0, radius), radius) & ws.shapes.Box((0.0, 0.0, 0.0), (radius, radius, radius))
     mesh = ws.mesh_shape(shape, h, name="hemisphere", refine=ws.shapes.Refine((0.0, 0.0, 0.0), fine, 2 * a))
     scene = ws.Scene("hertz", static=True, steps=1)
-    ball = scene.add_body("sphere", mesh, ws.Material(young_modulus, poisson_ratio, 1000.0))
+    ball = scene.add_body("sphere", mesh, ws.Material(young_modulus, poisson_ratio, 1000.0), element="corotational")
     scene.fix(ball, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9), axes="x")  # symmetry planes
     scene.fix(ball, ws.OnPlane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), tol=1e-9), axes="y")
     scene.fix(ball, ws.OnPlane((0.0, 0.0, radius), (0.0, 0.0, 1.0), tol=1e-9), axes="z")  # the equator

@@ -21,7 +21,8 @@ def build(angle=20.0, mu=0.5, mesh_size=None, size=0.02, young_modulus=1e5, pois
     h = mesh_size if mesh_size is not None else size / 4
     mesh = ws.mesh_shape(ws.shapes.Box((-size / 2, -size / 2, 0.0), (size, size, size / 2)), h, name="block")
     scene = ws.Scene("incline", gravity=(0.0, 0.0, -G), dt=dt, steps=100)
-    scene.add_body("block", mesh.transformed(rotation=turn), ws.Material(young_modulus, poisson_ratio, density))
+    scene.add_body("block", mesh.transformed(rotation=turn), ws.Material(young_modulus, poisson_ratio, density),
+                   element="corotational")
     scene.add_obstacle("slope", ws.obstacles.Floor((0.0, 0.0, 0.0), turn @ np.array([0.0, 0.0, 1.0])), mu=mu)
     scene.set_contacts(int(np.sum(np.abs(mesh.nodes[:, 2]) < 1e-9)) + 8)  # the bottom face's nodes, with room
     scene.add_probe("center", (0.0, 0.0, 0.0))

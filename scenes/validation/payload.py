@@ -17,7 +17,7 @@ def build(length=0.05, side=0.01, young_modulus=1e5, poisson_ratio=0.0, density=
     scene = ws.Scene("payload", gravity=(0.0, 0.0, -gravity), dt=dt, steps=100)
     shape = ws.shapes.Box((-side / 2, -side / 2, 0.0), (side, side, length))
     bar = scene.add_body("bar", ws.mesh_shape(shape, mesh_size, name="payload_bar"),
-                         ws.Material(young_modulus, poisson_ratio, density))
+                         ws.Material(young_modulus, poisson_ratio, density), element="corotational")
     scene.fix(bar, ws.InBox((-1.0, -1.0, length - 1e-9), (1.0, 1.0, 1.0)))
     weight = scene.add_rigid("weight", ws.obstacles.Box((0.0, 0.0, -side / 2), (side,) * 3), mass=mass,
                              velocity=(swing, 0.0, 0.0))

@@ -23,7 +23,7 @@ def build(side=0.003, density=8000.0, mu=0.5, drop=0.0002, mesh_size=0.01, young
     scene = ws.Scene("pebble", gravity=(0.0, 0.0, -gravity), dt=dt, steps=40)
     shape = ws.shapes.Box((-0.03, -0.03, 0.0), (0.06, 0.06, 0.01))
     slab = scene.add_body("slab", ws.mesh_shape(shape, mesh_size, name="pebble_slab"),
-                          ws.Material(young_modulus, poisson_ratio, 1000.0))
+                          ws.Material(young_modulus, poisson_ratio, 1000.0), element="corotational")
     scene.fix(slab, ws.InBox((-1.0, -1.0, -1.0), (1.0, 1.0, 1e-4)))
     scene.set_damping(1.0, 0.0)
     mesh = slab.mesh

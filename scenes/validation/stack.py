@@ -26,7 +26,7 @@ def build(height=0.01, width=0.01, gap=0.001, young_modulus=2e4, poisson_ratio=0
     mesh = ws.TetMesh(np.vstack([lower.nodes, upper.nodes]), np.vstack([lower.tets, upper.tets + len(lower.nodes)]),
                       name="stack")
     scene = ws.Scene("stack", gravity=(0.0, 0.0, -9.81), dt=dt, steps=60)
-    body = scene.add_body("stack", mesh, ws.Material(young_modulus, poisson_ratio, density))
+    body = scene.add_body("stack", mesh, ws.Material(young_modulus, poisson_ratio, density), element="corotational")
     scene.set_damping(damping, 0.0)
     scene.fix(body, ws.OnPlane((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), tol=1e-9), axes="x")  # symmetry planes
     scene.fix(body, ws.OnPlane((0.0, 0.0, 0.0), (0.0, 1.0, 0.0), tol=1e-9), axes="y")

@@ -7,13 +7,12 @@ gravity, damping and the time discretization. Only what it declares is simulated
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import LockingWarning, SceneError
+from ..errors import SceneError
 from .cable import Cable
 from .cavity import Cavity
 from .effector import Effector
@@ -26,7 +25,6 @@ from .surface import area_shares
 
 Vec3 = tuple[float, float, float]
 ELEMENTS = ("corotational", "quadratic", "neohookean")  # the element models a body may choose (warpsoft/elastic)
-LOCKING_NU = 0.4  # linear tetrahedra left to the default at this Poisson ratio or more: a LockingWarning
 
 
 def _finite(value, what: str) -> float:
@@ -177,24 +175,15 @@ class Scene:
 
     # ---- components -------------------------------------------------------------------
     def add_body(self, name: str, mesh: TetMesh, material: Material, total_mass: float | None = None,
-                 element: str | None = None) -> Body:
+                 element: str = "quadratic") -> Body:
         """Add a deformable body. ``total_mass`` (kg), if given, sets a uniform density
-        ``total_mass / volume`` in place of the material's. ``element``: "corotational" (linear
-        tetrahedra), "quadratic" (10-node tetrahedra on the same mesh: a node is added at each
-        edge's midpoint; they do not lock in bending or near incompressibility, see
-        ``warpsoft/elastic/quadratic.py``) or "neohookean" (linear tetrahedra of stable
-        Neo-Hookean material: the same at small strain, hyperelastic at large strain and robust
-        to inversion, see ``warpsoft/elastic/neohookean.py``). None (default): "corotational",
-        with a :class:`~warpsoft.errors.LockingWarning` at a Poisson ratio of ``LOCKING_NU`` or
-        more, where linear tetrahedra lock in bending (pass the element to choose)."""
-        if element is None:
-            element = "corotational"
-            if isinstance(material, Material) and material.poisson_ratio >= LOCKING_NU:
-                warnings.warn(LockingWarning(
-                    f"body '{name}': linear tetrahedra (the default element) lock at nu = {material.poisson_ratio:g}: "
-                    "a body that bends comes out too stiff (a cantilever at nu 0.45: 16-20 %; 10-node elements: "
-                    "2-3 %). Pass element='quadratic' for bending bodies, or element='corotational' to keep "
-                    "linear ones (uniaxial loads, speed)"), stacklevel=2)
+        ``total_mass / volume`` in place of the material's. ``element``: "quadratic" (the default:
+        10-node tetrahedra on the same mesh, a node added at each edge's midpoint; they do not lock
+        in bending or near incompressibility, see ``warpsoft/elastic/quadratic.py``),
+        "corotational" (linear tetrahedra: 5-6x fewer DOFs, but too stiff where a body bends, the
+        more so as nu nears 0.5: a cantilever at nu 0.45 by 16-20 %) or "neohookean" (linear
+        tetrahedra of stable Neo-Hookean material: the same at small strain, hyperelastic at large
+        strain and robust to inversion, see ``warpsoft/elastic/neohookean.py``)."""
         if any(b.name == name for b in self.bodies):
             raise SceneError(f"scene '{self.name}': a body named '{name}' exists already")
         if not isinstance(mesh, TetMesh):
