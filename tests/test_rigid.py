@@ -259,9 +259,11 @@ def test_a_frictionless_cube_on_a_coarse_damped_slab_comes_to_rest():
     well. The scene's Rayleigh mass damping acts on every body the step integrates, the cube
     too, as SOFA's implicit Euler does; it used to act on the slab alone, and the cube, free to
     slide and turn, kept swinging: 2.5 degrees about the vertical and 1 mm across in its last 2 s
-    of 8. Now it settles. The total energy (slab and cube) falls, but for steps where one more
-    contact starts to bear: each adds ~5e-8 J (known, not fixed, cause not found: it stays with
-    Gauss-Seidel converged to 1e-12, and with every rigid point's row kept)."""
+    of 8. Now it settles, and the total energy (slab and cube) falls: a step that raises it by
+    more than 1e-8 J fails. Before, each step where one of the cube's points came over a
+    triangle's corner gained ~5.4e-8 J: its row was handed to the corner node's row against the
+    cube, which measures the gap along another normal (17 such rises in 800 steps, 1.6 % of what
+    the damping took)."""
     scene = ws.Scene("rest", gravity=(0, 0, -G), dt=0.01)
     slab = scene.add_body("slab", ws.mesh_shape(ws.shapes.Box((-0.03, -0.03, 0), (0.06, 0.06, 0.01)), 0.01),
                           ws.Material(5e4, 0.3, 1000.0), element="corotational")
@@ -286,6 +288,6 @@ def test_a_frictionless_cube_on_a_coarse_damped_slab_comes_to_rest():
         place.append(p[:2].copy())
         yaw.append(np.degrees(np.arctan2(rotation[1, 0], rotation[0, 0])))
     rises = np.diff(energy)[np.diff(energy) > 0.0]
-    assert energy[-1] < energy[0] and rises.sum() < 0.05 * (energy[0] - energy[-1] + rises.sum())
+    assert energy[-1] < energy[0] and rises.max() < 1e-8 and rises.sum() < 1e-3 * (energy[0] - energy[-1])
     place, yaw = np.array(place[-200:]), np.array(yaw[-200:])  # the last 2 s
     assert np.ptp(place, axis=0).max() < 2e-4 and np.ptp(yaw) < 1.0
