@@ -2,7 +2,6 @@
 a bending body at silicone's Poisson ratio is not too stiff (linear tetrahedra are the opt-in
 for speed)."""
 
-import pytest
 
 import warpsoft as ws
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import sys
 import time
 from datetime import date
@@ -36,6 +35,7 @@ except ImportError:
     resource = None
 
 import warpsoft as ws
+from warpsoft.io.compiling import ModuleLoads
 from warpsoft.io.runner import build_scene
 from warpsoft.io.sweep import premesh
 from warpsoft.linear import factors
@@ -81,44 +81,6 @@ def _switches() -> int:
     where the platform does not count them per thread)."""
     who = getattr(resource, "RUSAGE_THREAD", None)  # (Linux)
     return resource.getrusage(who).ru_nivcsw if who is not None else 0
-
-
-class ModuleLoads:
-    """A Warp logger (``wp.set_logger``) that adds up the kernel modules' loads while it is in use
-    (``with``): their count and time (ms), compiled or taken from the kernel cache, which is how
-    much of a setup is kernel compilation. Warnings and errors go on as Warp's own logger has them."""
-
-    LOAD = re.compile(r"load on device '[^']*' took ([0-9.]+) ms\s*\((compiled|cached)\)")
-
-    def __init__(self):
-        self.ms = {"compiled": 0.0, "cached": 0.0}
-        self.count = {"compiled": 0, "cached": 0}
-        self._saved = None
-
-    def __enter__(self) -> ModuleLoads:
-        self._saved = (wp.get_logger(), wp.config.log_level)
-        wp.config.log_level = wp.LOG_INFO  # (the module loads are timed at this level only)
-        wp.set_logger(self)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        logger, wp.config.log_level = self._saved
-        wp.set_logger(logger)
-
-    def debug(self, message: str) -> None:
-        pass
-
-    def info(self, message: str) -> None:
-        found = self.LOAD.search(message)
-        if found:
-            self.ms[found.group(2)] += float(found.group(1))
-            self.count[found.group(2)] += 1
-
-    def warning(self, message: str, category=None, stacklevel: int = 1) -> None:
-        self._saved[0].warning(message, category, stacklevel + 1)
-
-    def error(self, message: str) -> None:
-        self._saved[0].error(message)
 
 
 def step_median(scenes: list, device: str, steps: int, warmup: int, kernels: bool = False,

@@ -9,13 +9,14 @@ import json
 import signal
 import sys
 import threading
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from types import ModuleType
 
 from ..errors import OutputError, SceneError, WarpsoftError
 from ..scene import Scene
 from ..simulator import Simulator
+from .compiling import ModuleLoads
 from .report import RunReport
 
 
@@ -208,7 +209,8 @@ def run(scene: Scene, steps: int | None = None, device: str | None = None, usd: 
         print(f"warpsoft: model of {m.num_nodes} nodes and {m.num_elements} elements on {m.device}; the first step "
               "compiles the kernels (once per machine: they are cached)...", file=sys.stderr, flush=True)
         iterator = tqdm(iterator, desc=scene.name, unit="step", disable=None)
-    with stop_on_signals() as interrupted:
+    loads = ModuleLoads(say=lambda line: tqdm.write(line, file=sys.stderr)) if progress else nullcontext()
+    with stop_on_signals() as interrupted, loads:
         try:
             flush()  # the outputs exist from the start (status "running")
             for k in iterator:

@@ -34,7 +34,7 @@ import re
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack, contextmanager, nullcontext
 from dataclasses import dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
@@ -45,6 +45,7 @@ from ..errors import SceneError, SimulationError
 from ..model import finalize
 from ..processes import bind_to_parent
 from ..simulator import Simulator
+from .compiling import ModuleLoads
 from .runner import build_scene, load_scene_module, parse_value
 from .store import ResultStore, fingerprint, folder_lock
 
@@ -384,17 +385,19 @@ def _step_worlds(scenes: list, results: list[DesignResult], steps: int, device: 
         print(f"warpsoft sweep: a batch of {m.num_worlds} designs ({m.num_nodes} nodes) on {m.device}; its first "
               "step compiles the kernels (once per machine: they are cached)...", flush=True)
         iterator = tqdm(iterator, desc=f"batch of {m.num_worlds}", unit="step", disable=None, leave=False)
+    loads = ModuleLoads(say=tqdm.write) if _PROGRESS["on"] else nullcontext()
     try:
-        for _ in iterator:
-            stats = sim.step()
-            record_probes()
-            for w, (r, ws) in enumerate(zip(results, stats.worlds, strict=True)):
-                for what, track in tracks[w].items():
-                    for name, v in getattr(ws, what).items():
-                        track.setdefault(name, []).append(v)
-                label = sim.world_label(w)
-                r.warnings += [msg for msg in stats.warnings if m.num_worlds == 1 or label in msg]
-                r.steps += 1
+        with loads:
+            for _ in iterator:
+                stats = sim.step()
+                record_probes()
+                for w, (r, ws) in enumerate(zip(results, stats.worlds, strict=True)):
+                    for what, track in tracks[w].items():
+                        for name, v in getattr(ws, what).items():
+                            track.setdefault(name, []).append(v)
+                    label = sim.world_label(w)
+                    r.warnings += [msg for msg in stats.warnings if m.num_worlds == 1 or label in msg]
+                    r.steps += 1
     finally:
         seconds = (time.perf_counter() - started) / len(results)
         for w, r in enumerate(results):
