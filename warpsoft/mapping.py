@@ -62,18 +62,30 @@ def locate(nodes: np.ndarray, tets: np.ndarray, points: np.ndarray, names: list[
         SceneError: naming the first point farther outside than allowed, with its distance.
     """
     tets = np.asarray(tets)
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
     centroids = nodes[tets].mean(axis=1)
     tree = cKDTree(centroids)
     k = min(CANDIDATES, len(tets))
     ids = np.zeros((len(points), 4), dtype=np.int32)
     weights = np.zeros((len(points), 4))
-    for j, (p, name) in enumerate(zip(points, names, strict=True)):
-        p = np.asarray(p, dtype=float)
-        _, cand = tree.query(p, k=k)
-        cand = np.atleast_1d(cand)
-        cand = cand[cand < len(tets)]  # (the tree answers len(tets) where a distance overflows)
-        if not len(cand):
-            cand = np.arange(len(tets))
+    if len(names) != len(points):
+        raise ValueError(f"locate: {len(points)} points and {len(names)} names")
+    # every point against its candidates at once; those none of them holds go on one by one below
+    with np.errstate(all="ignore"):
+        _, cand = tree.query(points, k=k)
+        cand = cand.reshape(len(points), k)
+        known = cand < len(tets)  # (the tree answers len(tets) where a distance overflows)
+        lam = barycentric(nodes, tets[np.where(known, cand, 0)], points[:, None, :])  # (p, k, 4)
+        worst = np.where(known, lam.min(axis=2), -np.inf)
+    best = np.argmax(worst, axis=1)
+    rows = np.arange(len(points))
+    inside = (worst[rows, best] >= -tol) & np.all(np.isfinite(lam[rows, best]), axis=1)
+    w = np.clip(lam[rows[inside], best[inside]], 0.0, None)
+    ids[inside], weights[inside] = tets[cand[rows[inside], best[inside]]], w / w.sum(axis=1, keepdims=True)
+    candidates = cand
+    for j in np.flatnonzero(~inside):
+        p, name = points[j], names[j]
+        cand = candidates[j][known[j]] if np.any(known[j]) else np.arange(len(tets))
         lam = barycentric(nodes, tets[cand], p)
         worst = lam.min(axis=1)
         best = int(np.argmax(worst))

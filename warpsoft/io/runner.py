@@ -11,7 +11,7 @@ import sys
 import threading
 from contextlib import contextmanager, nullcontext
 from pathlib import Path
-from types import ModuleType
+from types import CodeType, ModuleType
 
 from ..errors import OutputError, SceneError, WarpsoftError
 from ..scene import Scene
@@ -43,6 +43,9 @@ def parse_params(items: list[str]) -> dict:
     return params
 
 
+_CODE: dict[tuple, CodeType] = {}  # (scene file, its mtime and size) -> its compiled code
+
+
 def load_scene_module(path: str | Path) -> ModuleType:
     """Import a scene file (it must define ``build(**params) -> Scene``)."""
     path = Path(path)
@@ -52,7 +55,11 @@ def load_scene_module(path: str | Path) -> ModuleType:
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
-    spec.loader.exec_module(module)
+    stat = path.stat()
+    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+    if key not in _CODE:  # (a sweep builds each design from a fresh module of the same file: compiled once)
+        _CODE[key] = compile(path.read_bytes(), str(path), "exec")
+    exec(_CODE[key], module.__dict__)
     if not callable(getattr(module, "build", None)):
         raise SceneError(f"scene file {str(path)!r} defines no build(**params) function")
     return module
