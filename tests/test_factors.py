@@ -309,10 +309,10 @@ def test_a_block_not_positive_definite_names_its_world(monkeypatch):
 
     real = factors.factor_programs
 
-    def failing(sparsity, values, ordering, panel_rows=0):
+    def failing(sparsity, values, ordering, panel_rows=0, kept=None):
         if sparsity.size == 3 * 17 * 3 * 3 - 27:  # the 16-cell beam's free DOFs
             raise ArithmeticError("3")
-        return real(sparsity, values, ordering, panel_rows)
+        return real(sparsity, values, ordering, panel_rows, kept)
 
     monkeypatch.setattr(factors, "factor_programs", failing)
     with pytest.raises(ws.SceneError, match="WorldFactors: world 1 \\(scene 'beam'\\): its system is not positive"):

@@ -108,16 +108,24 @@ AHEAD = 4
 WORLD_RATIO, WORLD_FLOOR, WORLD_LAG, WORLD_BATCH = 1.5, 10, 2, 16
 
 
-def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str,
-                    panel_rows: int = 0) -> tuple[np.ndarray, tuple[Program, Program] | tuple[Panels, Panels]]:
+def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str, panel_rows: int = 0,
+                    kept: tuple[np.dtype, np.dtype] | None = None
+                    ) -> tuple[np.ndarray, tuple[Program, Program] | tuple[Panels, Panels]]:
     """One block: CHOLMOD's factor of the system ``values`` (its lower triangle's, on
     ``sparsity``) in ``ordering``, read out as the forward and backward level programs (a task a
-    row), or with ``panel_rows`` as panels of that many rows; and the factor's ``order`` (the DOF
-    at each of its places). A function of its arguments alone, so that worker processes can run
-    it; raises ArithmeticError when the system is not positive definite."""
+    row), or with ``panel_rows`` as panels of that many rows, their values and columns in the
+    dtypes ``kept`` (as the device keeps them: a worker sends back half the bytes); and the
+    factor's ``order`` (the DOF at each of its places). A function of its arguments alone, so that
+    worker processes can run it; raises ArithmeticError when the system is not positive definite."""
     L, order = CholmodFactor(sparsity, ordering=ordering).lower(values)
     analysis = Supernodal(L)
-    return order, analysis.panels(L, panel_rows) if panel_rows else analysis.programs(L)
+    if not panel_rows:
+        return order, analysis.programs(L)
+    panels = analysis.panels(L, panel_rows)
+    if kept is not None:
+        panels = tuple(replace(p, val=p.val.astype(kept[0], copy=False), col=p.col.astype(kept[1], copy=False))
+                       for p in panels)
+    return order, panels
 
 
 def _ahead(pool: ProcessPoolExecutor, jobs, ahead: int):
@@ -337,7 +345,9 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         if first:
             self._group(blocks)
         rows = self.panel_rows if self.layout == "panels" else 0
-        jobs = ((self.patterns[self.mesh_of[w]].sparsity(), self._system(blocks, w), self.ordering, rows)
+        kept = (np.dtype(np.float64 if self.dtype == wp.float64 else np.float32),
+                np.dtype(wp.dtype_to_numpy(self.index_dtype)))
+        jobs = ((self.patterns[self.mesh_of[w]].sparsity(), self._system(blocks, w), self.ordering, rows, kept)
                 for w in self.first_world)
         workers = min(self.workers or usable_cores(), len(self.first_world))
         # one BLAS thread for the blocks' small dense products: the workers, forked inside, keep
@@ -379,8 +389,9 @@ class WorldFactors(OwnRefreshes, WorldGroups):
             order, program = self._factorized(m, b, w, result, first)
             if first:
                 self.orders.append(order)
-            if self.layout == "panels":  # (held till the lay-out: 4.7 MB a Diamond in float64)
-                program = tuple(replace(p, val=p.val.astype(npd), col=p.col.astype(index)) for p in program)
+            if self.layout == "panels":  # (held till the lay-out; made in these dtypes, so no copy)
+                program = tuple(replace(p, val=p.val.astype(npd, copy=False), col=p.col.astype(index, copy=False))
+                                for p in program)
             programs.append(program)
         self._lay_out(programs)
 
