@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import warp as wp
 
@@ -12,6 +14,7 @@ from warpsoft.kernels.linear import cg as linalg
 from ..elastic import element_model
 from ..launch import launch
 from ..model import Model
+from ..processes import usable_cores
 
 OPERATORS = ("auto", "matrix_free", "assembled")
 # "auto" assembles the blocks on CUDA from this many elements (a batch of designs): there the
@@ -75,6 +78,29 @@ class SystemOperator:
         self.elastic.apply(x, y, self.rot, self.stiffness_scale, done)
 
 
+SORT_PIECE = 1 << 20  # keys per thread in stable_order (below two pieces: one sort)
+
+
+def stable_order(key: np.ndarray) -> np.ndarray:
+    """``np.argsort(key, kind="stable")`` for a ``(n,)`` integer ``key``, sorted in pieces, one
+    thread each, cut where every key before the cut is at or below every key after it (the element
+    blocks of a batch come world by world, each world's nodes after the last one's)."""
+    pieces = min(-(-len(key) // SORT_PIECE), usable_cores())
+    if pieces < 2:
+        return np.argsort(key, kind="stable")
+    before = np.maximum.accumulate(key)[:-1]  # the largest key before each cut 1..n-1
+    after = np.minimum.accumulate(key[::-1])[::-1][1:]  # the smallest from it on
+    cuts = np.flatnonzero(before <= after) + 1
+    if not len(cuts):
+        return np.argsort(key, kind="stable")
+    wanted = np.linspace(0, len(key), pieces + 1)[1:-1]
+    near = np.clip(np.searchsorted(cuts, wanted), 0, len(cuts) - 1)
+    bounds = np.unique(np.concatenate([[0], cuts[near], [len(key)]]))
+    with ThreadPoolExecutor(len(bounds) - 1) as pool:  # (numpy's sorts run outside the GIL)
+        orders = list(pool.map(lambda a, b: np.argsort(key[a:b], kind="stable"), bounds[:-1], bounds[1:]))
+    return np.concatenate([o + a for o, a in zip(orders, bounds[:-1], strict=True)])
+
+
 def chunked(rows: np.ndarray, cols: np.ndarray, n: int,
             chunk_rows: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The sliced layout of the slots ``(rows, cols)`` (``(slots,)`` each, sorted by row) of ``n``
@@ -121,7 +147,7 @@ class AssembledBlocks:
             raise ValueError(f"AssembledBlocks: {len(pairs)} element blocks pass the 2^31 a Warp index holds; "
                              "step fewer designs at a time, or use operator='matrix_free'")
         key = pairs[:, 0] * n + pairs[:, 1]
-        order = np.argsort(key, kind="stable")  # the element blocks grouped by slot, rows in order
+        order = stable_order(key)  # the element blocks grouped by slot, rows in order
         ordered = key[order]
         first = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1]]))  # each slot's first
         slots = ordered[first]
@@ -138,7 +164,7 @@ class AssembledBlocks:
         # each place's element blocks: a filled slot's, in the order of the places; none for the padding
         count = np.zeros(self.num_slots, dtype=np.int64)
         count[place] = np.diff(np.append(first, len(key)))
-        by_place = np.argsort(place, kind="stable")  # the filled slots in the order of their places
+        by_place = stable_order(place)  # the filled slots in the order of their places
         starts = np.repeat(first[by_place] - np.concatenate([[0], np.cumsum(count[place][by_place])[:-1]]),
                            count[place][by_place])
         self.slot_start = wp.array(np.concatenate([[0], np.cumsum(count)]).astype(np.int32), device=d)
