@@ -362,3 +362,21 @@ def test_a_full_disk_keeps_the_last_whole_usd_and_the_report_says_why(tmp_path, 
     stage = Usd.Stage.Open(str(usd))
     assert stage.GetPrimAtPath("/World/beam")
     assert not [p.name for p in tmp_path.iterdir() if "tmp" in p.name]
+
+
+def test_a_new_usd_writer_removes_what_a_killed_one_left(tmp_path):
+    """A run killed while saving leaves its own temporary (``.beam.tmp.usda``) or the one USD's
+    atomic writer was filling (``.beam.tmp.XXXXXX``, as seen on a kill inside ``Export``, with
+    usd-core 26.11); the next writer of that USD removes both, and nothing else."""
+    from warpsoft.io.usd import UsdWriter
+
+    scene = ws.Scene("beam", static=True, steps=1)
+    body = scene.add_body("beam", ws.box_grid((0, 0, 0), (0.1, 0.01, 0.01), (4, 1, 1)), ws.Material(1e5, 0.3),
+                          element="corotational")
+    scene.fix(body, ws.OnPlane((0, 0, 0), (1, 0, 0)))
+    stale = [".beam.tmp.usda", ".beam.tmp.Cq6MuW"]
+    kept = [".beam.tmp.notes.txt", "beam.Cq6MuW", ".other.tmp.Cq6MuW", ".beam.tmp.Cq6MuW7", "beam.usda"]
+    for name in stale + kept:
+        (tmp_path / name).write_text("x")
+    UsdWriter(tmp_path / "beam.usda", ws.Model(scene, "cpu"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(kept)

@@ -4,13 +4,27 @@ the contacts (points with their forces)."""
 
 from __future__ import annotations
 
+import glob
 import os
+import re
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import OutputError, SceneError
 from ..model import Model
+
+USD_TEMPORARY = re.compile(r"[A-Za-z0-9]{6}")  # USD's atomic writer: <stem>.XXXXXX beside the file it writes
+
+
+def stale_temporaries(path: Path) -> list[Path]:
+    """The temporary files a killed writer of ``path`` can leave: this writer's own
+    (``.STEM.tmp.EXT``), and the one USD's atomic writer makes beside it while exporting
+    (``.STEM.tmp.XXXXXX``, six letters or digits)."""
+    ours = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    theirs = [p for p in path.parent.glob(f".{glob.escape(path.stem)}.tmp.*")
+              if USD_TEMPORARY.fullmatch(p.name[len(f".{path.stem}.tmp."):])]
+    return [ours, *theirs]
 
 
 class UsdWriter:
@@ -33,7 +47,8 @@ class UsdWriter:
             raise SceneError(f"USD output: extension must be .usda, .usdc or .usd, got {str(path)!r}")
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path, self.model = path, model
-        path.with_name(f".{path.stem}.tmp{path.suffix}").unlink(missing_ok=True)  # a killed run's
+        for stale in stale_temporaries(path):  # a killed run's
+            stale.unlink(missing_ok=True)
         self.stage = Usd.Stage.CreateInMemory(path.name)
         UsdGeom.SetStageUpAxis(self.stage, UsdGeom.Tokens.z)
         UsdGeom.SetStageMetersPerUnit(self.stage, 1.0)
