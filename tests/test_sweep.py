@@ -295,3 +295,20 @@ def build(radius=0.01):
         results = sweep(path, [{"radius": 0.01}, {"radius": 0.012}], workers=1, out=tmp_path / "out")
     assert [r.status for r in results] == ["completed", "completed"]
     assert not list((tmp_path / "out" / "mesh_cache").glob("*.npz"))
+
+
+def test_a_batch_shows_its_first_factorization(capsys):
+    """With factors for a preconditioner, a batch's first step says how many blocks it factorizes
+    (the same beam at 1 and 3 MPa share one: 3 blocks for 4 designs) and its bar ends at all of them."""
+    from warpsoft.io.sweep import _factor_bar
+
+    from .test_blocks import four_designs
+
+    sim = ws.Simulator(ws.finalize(four_designs()), device="cpu", solver="pcg", preconditioner="factors")
+    seen = []
+    _factor_bar(sim)
+    shown = sim.solver.precond.progress
+    sim.solver.precond.progress = lambda done, total: (seen.append((done, total)), shown(done, total))
+    sim.step()
+    assert seen == [(1, 3), (2, 3), (3, 3)]
+    assert "factorizing the preconditioner's 3 blocks" in capsys.readouterr().out

@@ -385,6 +385,7 @@ def _step_worlds(scenes: list, results: list[DesignResult], steps: int, device: 
         print(f"warpsoft sweep: a batch of {m.num_worlds} designs ({m.num_nodes} nodes) on {m.device}; its first "
               "step compiles the kernels (once per machine: they are cached)...", flush=True)
         iterator = tqdm(iterator, desc=f"batch of {m.num_worlds}", unit="step", disable=None, leave=False)
+        _factor_bar(sim)
     loads = ModuleLoads(say=tqdm.write) if _PROGRESS["on"] else nullcontext()
     try:
         with loads:
@@ -405,6 +406,29 @@ def _step_worlds(scenes: list, results: list[DesignResult], steps: int, device: 
             r.probes = {n: np.array(v) for n, v in probes[w].items()}
             for what, track in tracks[w].items():
                 setattr(r, what, {n: np.array(v) for n, v in track.items()})
+
+
+def _factor_bar(sim: Simulator) -> None:
+    """A bar over the blocks each whole refresh of the preconditioner factorizes (the first comes
+    in the first step: one block per design of its own mesh), where the solver keeps factors."""
+    from tqdm import tqdm
+
+    pre = getattr(sim.solver, "precond", None)
+    if not hasattr(pre, "progress"):
+        return
+    bar = None
+
+    def progress(done: int, total: int) -> None:
+        nonlocal bar
+        if done == 1:
+            tqdm.write(f"  factorizing the preconditioner's {total} blocks (a design's own, or shared by designs "
+                       "whose systems are multiples)...")
+            bar = tqdm(total=total, desc="factorization", unit="block", disable=None, leave=False)
+        bar.update(done - bar.n)
+        if done == total:
+            bar.close()
+
+    pre.progress = progress
 
 
 def design_metrics(r: DesignResult, metrics: Callable | None) -> dict[str, float]:

@@ -290,6 +290,7 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         self.world_ratio, self.world_floor, self.world_lag = WORLD_RATIO, WORLD_FLOOR, WORLD_LAG
         self.world_batch = WORLD_BATCH
         self.world_refreshes, self.refactorizer = 0, None
+        self.progress = None  # called with (blocks factorized, blocks) as a whole refresh goes (a sweep's bar)
         self._world_first = np.zeros(m.num_worlds, dtype=np.int64)  # its first solve's iterations (0: none yet)
         # per block: its world's CG count where due for its own refresh (else 0); whether it serves one world alone
         self._due = self._own = None
@@ -393,6 +394,8 @@ class WorldFactors(OwnRefreshes, WorldGroups):
                 program = tuple(replace(p, val=p.val.astype(npd, copy=False), col=p.col.astype(index, copy=False))
                                 for p in program)
             programs.append(program)
+            if self.progress is not None:
+                self.progress(b + 1, len(self.first_world))
         self._lay_out(programs)
 
     def _factorized(self, m, b: int, w: int, call, first: bool = False) -> tuple:
