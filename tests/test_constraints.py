@@ -318,3 +318,28 @@ def test_an_anchored_cable_row_is_its_shortening_gradient():
         fd = (delta(q0 + 1e-7 * direction) - delta(q0 - 1e-7 * direction)) / 2e-7
         delta(q0)
         assert np.sum(cs.forces(np.array([1.0])) * direction) == pytest.approx(fd, rel=1e-6)
+
+
+def test_many_bodies_checked_side_by_side_name_the_first_bad_cable_in_order(monkeypatch):
+    """Rows of many worlds locate their points and check their cables in threads: the same weights
+    as one by one, and of two worlds whose pull point lies inside the moving body (the 4th and the
+    9th of 10), the first is the error raised, named, as in the loop."""
+    from warpsoft import processes
+    from warpsoft.rows import Rows
+
+    def scene(inside: bool, name: str = "c") -> ws.Scene:
+        s, body = beam()
+        s.add_cable(name, body, points=[(x, 0.0, 0.004) for x in (0.03, 0.06, 0.095)],
+                    pull_point=(0.02, 0.0, 0.004) if inside else (-0.01, 0.0, 0.004))
+        return s
+
+    monkeypatch.setattr(processes, "usable_cores", lambda: 4)
+    model = ws.Model([scene(False) for _ in range(10)], "cpu")
+    threaded = Rows(model)
+    monkeypatch.setattr(processes, "THREADED_FROM", 10**9)
+    alone = Rows(model)
+    assert np.array_equal(threaded.point_weights.numpy(), alone.point_weights.numpy())
+    assert np.array_equal(threaded.point_nodes.numpy(), alone.point_nodes.numpy())
+    monkeypatch.setattr(processes, "THREADED_FROM", 2)
+    with pytest.raises(ws.SceneError, match="cable 'c3': its pull point .* lies inside body"):
+        Rows(ws.Model([scene(k in (3, 8), f"c{k}") for k in range(10)], "cpu"))

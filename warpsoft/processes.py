@@ -1,4 +1,4 @@
-"""Worker processes bound to the process that started them.
+"""Worker processes bound to the process that started them, and work spread over threads.
 
 warpsoft starts worker processes in three places: the meshes of a sweep (spawned), the first
 factorization of many blocks (a forked pool) and the worlds' own refreshes (forked, for the
@@ -15,8 +15,12 @@ import ctypes
 import os
 import threading
 import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import TypeVar
 
 PERIOD = 0.5  # s between a worker's looks at its parent
+T, R = TypeVar("T"), TypeVar("R")
 
 
 def _watch(parent: int, period: float) -> None:
@@ -55,3 +59,16 @@ def release_freed() -> None:
         ctypes.CDLL("libc.so.6").malloc_trim(0)
     except (OSError, AttributeError):
         pass
+
+
+THREADED_FROM = 8  # items from which in_threads uses threads
+
+
+def in_threads(work: Callable[[T], R], items: Sequence[T]) -> list[R]:
+    """``[work(item) for item in items]``, the items side by side in a thread each core (numpy's
+    and SciPy's array work runs outside the GIL) from :data:`THREADED_FROM` items; an error is
+    the first item's in order that raised, as in the loop."""
+    if len(items) < THREADED_FROM or usable_cores() < 2:
+        return [work(item) for item in items]
+    with ThreadPoolExecutor(min(usable_cores(), len(items))) as pool:
+        return list(pool.map(work, items))

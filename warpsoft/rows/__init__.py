@@ -22,6 +22,7 @@ from warpsoft.kernels.rows import mapping
 
 from ..launch import launch
 from ..mapping import locate
+from ..processes import in_threads
 from .attachment import AttachmentRows
 from .cable import CableRows
 from .cavity import CavityRows
@@ -106,11 +107,14 @@ class Rows:
         nodes, weights = np.zeros((point, 4), dtype=np.int32), np.zeros((point, 4))
         # a body's points at once: one search tree of its elements (1,024 Diamonds on the VM, in
         # cProfile: 7.7 -> 2.9 s, a tree per cable and effector before)
-        for (lo, hi), items in spans.items():
+        def body_points(span) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+            (lo, hi), items = span
             at = np.concatenate([np.arange(first, first + len(pts)) for first, pts, _ in items])
-            nodes[at], weights[at] = locate(model.rest_np, model.tets_np[lo:hi],
-                                            np.concatenate([pts for _, pts, _ in items]),
-                                            [name for _, _, names in items for name in names])
+            return at, locate(model.rest_np, model.tets_np[lo:hi], np.concatenate([pts for _, pts, _ in items]),
+                              [name for _, _, names in items for name in names])
+
+        for at, (ids, w) in in_threads(body_points, list(spans.items())):
+            nodes[at], weights[at] = ids, w
         self.point_nodes = wp.array(nodes, dtype=wp.vec4i, device=d) if point else None
         self.point_weights = wp.array(weights, dtype=wp.vec4d, device=d) if point else None
         self.points = wp.zeros(max(point, 1), dtype=wp.vec3d, device=d)

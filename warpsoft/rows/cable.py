@@ -16,6 +16,7 @@ from warpsoft.kernels.rows import cable as kernels
 from ..errors import SceneError
 from ..launch import launch
 from ..mapping import ball_weights, barycentric, locate
+from ..processes import in_threads
 from ..scene.obstacles import pose_of
 from .kind import RowKind
 
@@ -29,9 +30,16 @@ class CableRows(RowKind):
 
     def __init__(self, model, placed, entry_offset):
         super().__init__(model, placed, entry_offset)
-        boxes = {}  # (body, world) -> its elements' boxes, for its cables' checks
+        by_body = {}  # (body, world) -> its cables, checked in turn (they share its elements' boxes)
         for p in placed:
-            check_pull_point(model, p, boxes)
+            by_body.setdefault((p.item.body.name, p.world), []).append(p)
+
+        def check(cables: list) -> None:
+            boxes = {}
+            for p in cables:
+                check_pull_point(model, p, boxes)
+
+        in_threads(check, list(by_body.values()))
         d = model.device
         counts = np.array([p.num_points for p in placed], dtype=np.int32)
         self.point_offset = placed[0].first_point
