@@ -22,6 +22,7 @@ from warpsoft.kernels.elastic.quadratic import vec10i
 from .errors import SceneError, call_user
 from .launch import launch
 from .mapping import locate
+from .processes import in_threads
 from .scene import Scene, load_weights
 from .state import State
 
@@ -104,6 +105,8 @@ class Model:
 
         nodes, tets, mu, lam, rho, self.bodies = [], [], [], [], [], []
         node_starts, elem_starts = [0], [0]
+        meshes = {id(b.mesh): b.mesh for scene in self.scenes for b in scene.bodies}
+        in_threads(lambda mesh: mesh.surface(), list(meshes.values()))  # (found once, kept by each mesh)
         n0 = e0 = 0
         for w, scene in enumerate(self.scenes):
             for body in scene.bodies:
@@ -214,15 +217,19 @@ class Model:
 
         # probes: located in their own world's elements
         self.probe_names, self.probe_world, ids, wts = [], [], [], []
-        for w, scene in enumerate(self.scenes):
-            if scene.probes:
-                lo, hi = self.world_elem_start[w], self.world_elem_start[w + 1]
-                names = [p.name for p in scene.probes]
-                i_, w_ = locate(self.rest_np, self.tets_np[lo:hi], np.array([p.point for p in scene.probes]), names)
-                self.probe_names += names
-                self.probe_world += [w] * len(names)
-                ids.append(i_)
-                wts.append(w_)
+        probed = [w for w, scene in enumerate(self.scenes) if scene.probes]
+
+        def probes(w: int) -> tuple[np.ndarray, np.ndarray]:
+            lo, hi = self.world_elem_start[w], self.world_elem_start[w + 1]
+            points = np.array([p.point for p in self.scenes[w].probes])
+            return locate(self.rest_np, self.tets_np[lo:hi], points, [p.name for p in self.scenes[w].probes])
+
+        for w, (i_, w_) in zip(probed, in_threads(probes, probed), strict=True):
+            names = [p.name for p in self.scenes[w].probes]
+            self.probe_names += names
+            self.probe_world += [w] * len(names)
+            ids.append(i_)
+            wts.append(w_)
         self.probe_nodes = self.probe_weights = None
         if ids:
             self.probe_nodes = wp.array(np.concatenate(ids), dtype=wp.vec4i, device=d)
