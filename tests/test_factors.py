@@ -617,23 +617,3 @@ def test_pages_locked_by_a_refactorizer_shut_down_in_a_capture_are_unlocked_afte
     capturing.is_capturing = False
     refactor._shut_down([], [16384], capturing, [])
     assert calls == [12288, 4096, 8192, 16384] and refactor._UNLOCK_LATER == []
-
-
-def test_a_refresh_reads_the_systems_in_chunks_as_one_by_one(monkeypatch):
-    """The refresh's systems, read a chunk of worlds at a time and summed in threads, are each
-    world's as read alone, in order, with and without mass (static and dynamic designs)."""
-    monkeypatch.setattr(factors, "SYSTEM_CHUNK", 2)
-    for static in (True, False):
-        sim = ws.Simulator(ws.finalize([beam(static=static), beam(3e6, static=static), beam(1e6, 0.3, static=static),
-                                        beam(cells=16, static=static), beam(2e6, static=static)]), solver="direct")
-        sim.step()
-        pre = WorldFactors(sim.operator, 3, "float64", share=False)
-        m = sim.model
-        blocks = wp.zeros(16 * m.num_elements, dtype=wp.mat33d, device=m.device)
-        sim.operator.elastic.blocks(sim.operator.rot, blocks)
-        worlds = np.array([0, 1, 3, 4])
-        chunked = list(pre._systems(blocks, worlds))
-        assert len(chunked) == len(worlds)
-        for w, system in zip(worlds, chunked, strict=True):
-            assert np.array_equal(system, pre._system(blocks, int(w)))
-        assert (sim.operator.mass_scale != 0.0) == (not static)

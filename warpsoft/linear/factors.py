@@ -36,7 +36,6 @@ import math
 import multiprocessing
 import os
 from collections import deque
-from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import replace
 from functools import partial
@@ -94,7 +93,6 @@ POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CP
 # order as they come (all sent at once, a Diamond's system, job and result held about 7.7 MB of the host
 # each: 64 on the CPU VM; 4096 of them, about 31 GB)
 AHEAD = 4
-SYSTEM_CHUNK = 32  # worlds whose element blocks a refresh reads from the device at once (a Diamond's: 7 MB)
 # a world's own refresh (panels): its block is factorized anew at its state, between steps, when its CG
 # needed more than WORLD_RATIO times the iterations of its first solve after its block's last
 # factorization, and more than WORLD_FLOOR (None: never), by worker processes beside the steps and
@@ -337,39 +335,6 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         masses = values[count:] if len(values) > count else None
         return lower_system(self.patterns[self.mesh_of[w]], values[:count], masses)
 
-    def _systems(self, blocks: wp.array, worlds: np.ndarray) -> Iterator[np.ndarray]:
-        """The lower triangles of ``worlds`` (ascending) at the element blocks ``blocks``, in order.
-        The first is made here; then their element blocks are read from the device
-        :data:`SYSTEM_CHUNK` worlds at a time and summed into their patterns in threads (numpy's
-        gathers and sums run outside the GIL), a chunk ahead of the one consumed. (The threads start
-        after the first is taken: the factorizing processes fork at its submission, with no thread
-        of ours running.)"""
-        worlds = [int(w) for w in worlds]
-        if not worlds:
-            return
-        yield self._system(blocks, worlds[0])
-        m = self.op.model
-        with ThreadPoolExecutor(usable_cores()) as pool:
-            pending = deque()
-            for c in range(1, len(worlds), SYSTEM_CHUNK):
-                part = worlds[c:c + SYSTEM_CHUNK]
-                e0, e1 = int(m.world_elem_start[part[0]]), int(m.world_elem_start[part[-1] + 1])
-                held = blocks[16 * e0:16 * e1].numpy()
-                for w in part:
-                    a, b = int(m.world_elem_start[w]) - e0, int(m.world_elem_start[w + 1]) - e0
-                    pending.append(pool.submit(self._lower, w, held[16 * a:16 * b]))
-                while len(pending) > SYSTEM_CHUNK:
-                    yield pending.popleft().result()
-            while pending:
-                yield pending.popleft().result()
-
-    def _lower(self, w: int, elements: np.ndarray) -> np.ndarray:
-        """World ``w``'s lower triangle from its element blocks ``elements`` ``(16 elements, 3, 3)``
-        (host), as :meth:`_system` makes it."""
-        op, m = self.op, self.op.model
-        masses = op.mass_scale * m.mass_np[m.world_nodes(w)] if op.mass_scale != 0.0 else None
-        return lower_system(self.patterns[self.mesh_of[w]], op.stiffness_scale * elements.ravel(), masses)
-
     def refresh(self) -> None:
         """Factorize each block at the current rotations (its first world's state) with CHOLMOD,
         turn the factors into level programs, and take the rotations as the new frame. From
@@ -383,8 +348,8 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         rows = self.panel_rows if self.layout == "panels" else 0
         kept = (np.dtype(np.float64 if self.dtype == wp.float64 else np.float32),
                 np.dtype(wp.dtype_to_numpy(self.index_dtype)))
-        jobs = ((self.patterns[self.mesh_of[w]].sparsity(), system, self.ordering, rows, kept)
-                for w, system in zip(self.first_world, self._systems(blocks, self.first_world), strict=True))
+        jobs = ((self.patterns[self.mesh_of[w]].sparsity(), self._system(blocks, w), self.ordering, rows, kept)
+                for w in self.first_world)
         workers = min(self.workers or usable_cores(), len(self.first_world))
         # one BLAS thread for the blocks' small dense products: the workers, forked inside, keep
         # the limit (16 processes of 16 OpenBLAS threads each would oversubscribe 16 cores)
