@@ -72,20 +72,19 @@ def locate(nodes: np.ndarray, tets: np.ndarray, points: np.ndarray, names: list[
         raise ValueError(f"locate: {len(points)} points and {len(names)} names")
     # every point against its candidates at once; those none of them holds go on one by one below
     with np.errstate(all="ignore"):
-        _, cand = tree.query(points, k=k)
-        cand = cand.reshape(len(points), k)
-        known = cand < len(tets)  # (the tree answers len(tets) where a distance overflows)
-        lam = barycentric(nodes, tets[np.where(known, cand, 0)], points[:, None, :])  # (p, k, 4)
+        _, near = tree.query(points, k=k)
+        near = near.reshape(len(points), k)
+        known = near < len(tets)  # (the tree answers len(tets) where a distance overflows)
+        lam = barycentric(nodes, tets[np.where(known, near, 0)], points[:, None, :])  # (p, k, 4)
         worst = np.where(known, lam.min(axis=2), -np.inf)
     best = np.argmax(worst, axis=1)
     rows = np.arange(len(points))
     inside = (worst[rows, best] >= -tol) & np.all(np.isfinite(lam[rows, best]), axis=1)
     w = np.clip(lam[rows[inside], best[inside]], 0.0, None)
-    ids[inside], weights[inside] = tets[cand[rows[inside], best[inside]]], w / w.sum(axis=1, keepdims=True)
-    candidates = cand
+    ids[inside], weights[inside] = tets[near[rows[inside], best[inside]]], w / w.sum(axis=1, keepdims=True)
     for j in np.flatnonzero(~inside):
         p, name = points[j], names[j]
-        cand = candidates[j][known[j]] if np.any(known[j]) else np.arange(len(tets))
+        cand = near[j][known[j]] if np.any(known[j]) else np.arange(len(tets))
         lam = barycentric(nodes, tets[cand], p)
         worst = lam.min(axis=1)
         best = int(np.argmax(worst))

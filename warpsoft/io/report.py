@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import OutputError
 from ..simulator import Simulator, StepStats
+from .atomic import write_whole
 
 
 def percentiles(values: list[float]) -> dict[str, float]:
@@ -165,15 +165,11 @@ class RunReport:
     def write(self, path: str | Path) -> Path:
         """Write the report as JSON, atomically (a reader, or a kill mid-write, never sees half a file)."""
         path = Path(path)
-        tmp = path.with_name(path.name + ".tmp")
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            tmp.write_text(json.dumps(self.to_dict(), indent=1))
-            os.replace(tmp, path)
+            return write_whole(path, lambda tmp: tmp.write_text(json.dumps(self.to_dict(), indent=1)))
         except OSError as exc:  # the last whole report stays
-            tmp.unlink(missing_ok=True)
             raise OutputError(f"report: cannot write {path}: {exc}") from exc
-        return path
 
 
 def versions() -> dict[str, str]:

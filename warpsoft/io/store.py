@@ -24,6 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import SceneError
+from .atomic import write_whole
 
 DONE = ("completed", "failed", "invalid")  # a design with one of these is finished: a resume skips it
 
@@ -110,9 +111,7 @@ class ResultStore:
                                  "start again, or another --out")
             mine = {"fingerprint": key, "first": sum(p["count"] for p in parts), "count": count}
             parts.append(mine)
-            tmp = manifest.with_suffix(".tmp")
-            tmp.write_text(json.dumps({"sweeps": parts}, indent=1))
-            os.replace(tmp, manifest)
+            write_whole(manifest, lambda tmp: tmp.write_text(json.dumps({"sweeps": parts}, indent=1)))
         self.first = mine["first"]
         self.rows = self._read()
 

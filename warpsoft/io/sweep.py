@@ -45,6 +45,7 @@ from ..errors import SceneError, SimulationError
 from ..model import finalize
 from ..processes import bind_to_parent
 from ..simulator import Simulator
+from .atomic import write_whole
 from .compiling import ModuleLoads
 from .runner import build_scene, load_scene_module, parse_value
 from .store import ResultStore, fingerprint, folder_lock
@@ -226,7 +227,7 @@ def sweep(scene_file: str | Path, designs: Sequence[dict], steps: int | None = N
             for path in [out / "results.csv"] + ([out / "results.parquet"] if parquet else []):
                 write_rows(store.table(), path)
             if progress:
-                finished = [store.done(k) for k in range(len(designs)) if store.done(k) is not None]
+                finished = [row for k in range(len(designs)) if (row := store.done(k)) is not None]
                 failed = sum(row["status"] != "completed" for row in finished)
                 elapsed = time.perf_counter() - started
                 rate = sum(r.steps for r in results) / max(elapsed, 1e-9)
@@ -484,17 +485,15 @@ def write_rows(rows: Sequence[dict], path: str | Path) -> Path:
                 arrays[c] = pa.array(values)
             except (pa.ArrowInvalid, pa.ArrowTypeError):  # e.g. a parameter given as 3 and as "soft"
                 arrays[c] = pa.array([None if v is None else str(v) for v in values])
-        tmp = path.with_name(path.name + ".tmp")
-        pq.write_table(pa.table(arrays), tmp)
-        os.replace(tmp, path)
-        return path
-    tmp = path.with_name(path.name + ".tmp")  # (a kill while writing leaves the last whole table)
-    with open(tmp, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=columns, restval="")
-        writer.writeheader()
-        writer.writerows(rows)
-    os.replace(tmp, path)
-    return path
+        return write_whole(path, lambda tmp: pq.write_table(pa.table(arrays), tmp))
+
+    def write_csv(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=columns, restval="")
+            writer.writeheader()
+            writer.writerows(rows)
+
+    return write_whole(path, write_csv)  # (a kill while writing leaves the last whole table)
 
 
 def plot_sweep(results: Sequence[DesignResult], metric: str, params: Sequence[str], path: str | Path) -> Path:

@@ -5,7 +5,6 @@ the contacts (points with their forces)."""
 from __future__ import annotations
 
 import glob
-import os
 import re
 from pathlib import Path
 
@@ -13,15 +12,22 @@ import numpy as np
 
 from ..errors import OutputError, SceneError
 from ..model import Model
+from .atomic import write_whole
 
 USD_TEMPORARY = re.compile(r"[A-Za-z0-9]{6}")  # USD's atomic writer: <stem>.XXXXXX beside the file it writes
+
+
+def temporary(path: Path) -> Path:
+    """Where the stage of ``path`` is written before it is renamed over it: ``.STEM.tmp.EXT`` (USD
+    picks the format by the extension)."""
+    return path.with_name(f".{path.stem}.tmp{path.suffix}")
 
 
 def stale_temporaries(path: Path) -> list[Path]:
     """The temporary files a killed writer of ``path`` can leave: this writer's own
     (``.STEM.tmp.EXT``), and the one USD's atomic writer makes beside it while exporting
     (``.STEM.tmp.XXXXXX``, six letters or digits)."""
-    ours = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    ours = temporary(path)
     theirs = [p for p in path.parent.glob(f".{glob.escape(path.stem)}.tmp.*")
               if USD_TEMPORARY.fullmatch(p.name[len(f".{path.stem}.tmp."):])]
     return [ours, *theirs]
@@ -244,15 +250,14 @@ class UsdWriter:
         """Write the stage: to a temporary file beside it, then renamed over it, so that a full
         disk or a kill leaves the last whole file (and the next writer removes a stale temporary)."""
         self.stage.SetEndTimeCode(max(self.frames - 1, 0))
-        tmp = self.path.with_name(f".{self.path.stem}.tmp{self.path.suffix}")
-        try:
+        def export(tmp: Path) -> None:
             if not self.stage.GetRootLayer().Export(str(tmp)):
                 raise OSError(f"USD could not export the stage to {tmp}")
-            os.replace(tmp, self.path)
+
+        try:
+            return write_whole(self.path, export, temporary(self.path))
         except Exception as exc:  # (USD raises its own error types for a failed write)
-            tmp.unlink(missing_ok=True)
             raise OutputError(f"USD: cannot write {self.path}: {exc}") from exc
-        return self.path
 
 
 def _placement(center: np.ndarray, rotation: np.ndarray, Gf) -> object:
