@@ -36,7 +36,7 @@ import math
 import multiprocessing
 import os
 from collections import deque
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from functools import partial
 
@@ -49,7 +49,7 @@ from warpsoft.kernels.linear import factors as kernels
 from ..elastic import block_pairs
 from ..errors import SceneError
 from ..launch import launch
-from ..processes import bind_to_parent, release_freed, usable_cores
+from ..processes import bind_to_parent, in_threads, release_freed, usable_cores
 from .assembly import ORDERINGS, CholmodFactor
 from .blocks import WorldGroups
 from .operator import SystemOperator
@@ -258,8 +258,8 @@ class WorldFactors(OwnRefreshes, WorldGroups):
 
         # mesh by mesh in threads: numpy's sorts and gathers run outside the GIL (256 different
         # Diamonds on the 2-core VM: the simulator's construction 2.87 -> 2.38 s with two)
-        with ThreadPoolExecutor(usable_cores()) as pool:
-            self.patterns = dict(zip(self.meshes, pool.map(pattern, self.meshes), strict=True))  # mesh -> its
+        meshes = list(self.meshes)
+        self.patterns = dict(zip(meshes, in_threads(pattern, meshes), strict=True))  # mesh -> its pattern
         # an entry's column is a place of its factor, which has a place per free DOF
         places = max((p.size for p in self.patterns.values()), default=0)
         self.index_dtype = wp.uint16 if places <= NARROW_PLACES else wp.int32
