@@ -538,17 +538,3 @@ def test_node_rotations_gathered_per_node_equal_the_elements_atomic_sums(scene_m
     volume = np.linalg.det(atomic) ** (1 / 3)  # a node's elements' volume, for a sum of rotations
     turned = np.abs(atomic / volume[:, None, None] - np.eye(3)).max()
     assert turned > 0.05
-
-
-def test_the_threaded_stable_sort_is_numpys(monkeypatch):
-    """The assembly's sort of element-block keys, cut into pieces sorted side by side, gives numpy's
-    stable argsort: keys world by world with ties (cut between worlds), keys in no order (one
-    sort), and keys all equal."""
-    from warpsoft.linear import operator
-
-    monkeypatch.setattr(operator, "SORT_PIECE", 1000)
-    monkeypatch.setattr(operator, "usable_cores", lambda: 4)
-    rng = np.random.default_rng(3)
-    worlds = np.concatenate([rng.integers(100 * w, 100 * w + 60, 1500) for w in range(6)])
-    for key in (worlds, rng.integers(0, 50, 9000), np.zeros(5000, dtype=np.int64)):
-        assert np.array_equal(operator.stable_order(key), np.argsort(key, kind="stable"))

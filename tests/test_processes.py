@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import warpsoft as ws
+from warpsoft import processes
 from warpsoft.linear import WorldFactors, factors
 from warpsoft.linear.refactor import Refactorizer
 
@@ -83,3 +84,15 @@ def test_workers_end_when_their_parent_is_killed(parent):
     for pid in left:  # (not left behind by a failing test)
         os.kill(pid, signal.SIGKILL)
     assert left == []
+
+
+def test_the_threaded_stable_sort_is_numpys(monkeypatch):
+    """The assembly's sort of element-block keys, cut into pieces sorted side by side, gives numpy's
+    stable argsort: keys world by world with ties (cut between worlds), keys in no order (one
+    sort), and keys all equal."""
+    monkeypatch.setattr(processes, "SORT_PIECE", 1000)
+    monkeypatch.setattr(processes, "usable_cores", lambda: 4)
+    rng = np.random.default_rng(3)
+    worlds = np.concatenate([rng.integers(100 * w, 100 * w + 60, 1500) for w in range(6)])
+    for key in (worlds, rng.integers(0, 50, 9000), np.zeros(5000, dtype=np.int64)):
+        assert np.array_equal(processes.stable_order(key), np.argsort(key, kind="stable"))

@@ -19,6 +19,8 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
+import numpy as np
+
 PERIOD = 0.5  # s between a worker's looks at its parent
 T, R = TypeVar("T"), TypeVar("R")
 
@@ -72,3 +74,26 @@ def in_threads(work: Callable[[T], R], items: Sequence[T]) -> list[R]:
         return [work(item) for item in items]
     with ThreadPoolExecutor(min(usable_cores(), len(items))) as pool:
         return list(pool.map(work, items))
+
+
+SORT_PIECE = 1 << 20  # keys per thread in stable_order (below two pieces: one sort)
+
+
+def stable_order(key: np.ndarray) -> np.ndarray:
+    """``np.argsort(key, kind="stable")`` for a ``(n,)`` integer ``key``, sorted in pieces, one
+    thread each, cut where every key before the cut is at or below every key after it (the element
+    blocks of a batch come world by world, each world's nodes after the last one's)."""
+    pieces = min(-(-len(key) // SORT_PIECE), usable_cores())
+    if pieces < 2:
+        return np.argsort(key, kind="stable")
+    before = np.maximum.accumulate(key)[:-1]  # the largest key before each cut 1..n-1
+    after = np.minimum.accumulate(key[::-1])[::-1][1:]  # the smallest from it on
+    cuts = np.flatnonzero(before <= after) + 1
+    if not len(cuts):
+        return np.argsort(key, kind="stable")
+    wanted = np.linspace(0, len(key), pieces + 1)[1:-1]
+    near = np.clip(np.searchsorted(cuts, wanted), 0, len(cuts) - 1)
+    bounds = np.unique(np.concatenate([[0], cuts[near], [len(key)]]))
+    with ThreadPoolExecutor(len(bounds) - 1) as pool:  # (numpy's sorts run outside the GIL)
+        orders = list(pool.map(lambda a, b: np.argsort(key[a:b], kind="stable"), bounds[:-1], bounds[1:]))
+    return np.concatenate([o + a for o, a in zip(orders, bounds[:-1], strict=True)])

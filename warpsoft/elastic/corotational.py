@@ -15,6 +15,7 @@ from warpsoft.kernels.elastic import corotational as kernels
 from warpsoft.kernels.linear import warped as warped_kernels
 
 from ..launch import launch
+from ..processes import stable_order
 
 # From this many elements on CUDA (and always on the CPU), ``K x`` of several columns takes one
 # thread per element for all of them: on an H200, 1024 Diamonds' 5 columns took 3.48 ms against
@@ -134,6 +135,6 @@ def incidence(elems: np.ndarray, nodes: int, device) -> tuple[wp.array, wp.array
     the elements of node ``i`` (``elems`` ``(elements, nodes an element)``)."""
     node = elems.reshape(-1)
     owner = np.repeat(np.arange(len(elems), dtype=np.int32), elems.shape[1])
-    order = np.argsort(node, kind="stable")
+    order = stable_order(node)  # (world by world: sorted a piece a thread)
     first = np.concatenate([[0], np.cumsum(np.bincount(node, minlength=nodes))]).astype(np.int32)
     return wp.array(first, dtype=wp.int32, device=device), wp.array(owner[order], dtype=wp.int32, device=device)

@@ -116,6 +116,8 @@ class WorldGroups(WarpedFrames):
         for w in range(m.num_worlds):
             by_mesh.setdefault(self.mesh_of[w], []).append(w)
         for worlds in by_mesh.values() if self.share else []:
+            if len(worlds) < 2:  # (its world leads its own block: its values unread)
+                continue
             reps: list[tuple[int, np.ndarray]] = []  # this mesh's blocks: (first world, its values)
             for w in worlds:
                 values = self._values(blocks, w)

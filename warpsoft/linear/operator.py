@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 import warp as wp
 
@@ -14,7 +12,7 @@ from warpsoft.kernels.linear import cg as linalg
 from ..elastic import element_model
 from ..launch import launch
 from ..model import Model
-from ..processes import usable_cores
+from ..processes import stable_order
 
 OPERATORS = ("auto", "matrix_free", "assembled")
 # "auto" assembles the blocks on CUDA from this many elements (a batch of designs): there the
@@ -76,29 +74,6 @@ class SystemOperator:
         else:
             launch(linalg.zero_columns, x.shape, inputs=[m.node_world, done], outputs=[y], device=m.device)
         self.elastic.apply(x, y, self.rot, self.stiffness_scale, done)
-
-
-SORT_PIECE = 1 << 20  # keys per thread in stable_order (below two pieces: one sort)
-
-
-def stable_order(key: np.ndarray) -> np.ndarray:
-    """``np.argsort(key, kind="stable")`` for a ``(n,)`` integer ``key``, sorted in pieces, one
-    thread each, cut where every key before the cut is at or below every key after it (the element
-    blocks of a batch come world by world, each world's nodes after the last one's)."""
-    pieces = min(-(-len(key) // SORT_PIECE), usable_cores())
-    if pieces < 2:
-        return np.argsort(key, kind="stable")
-    before = np.maximum.accumulate(key)[:-1]  # the largest key before each cut 1..n-1
-    after = np.minimum.accumulate(key[::-1])[::-1][1:]  # the smallest from it on
-    cuts = np.flatnonzero(before <= after) + 1
-    if not len(cuts):
-        return np.argsort(key, kind="stable")
-    wanted = np.linspace(0, len(key), pieces + 1)[1:-1]
-    near = np.clip(np.searchsorted(cuts, wanted), 0, len(cuts) - 1)
-    bounds = np.unique(np.concatenate([[0], cuts[near], [len(key)]]))
-    with ThreadPoolExecutor(len(bounds) - 1) as pool:  # (numpy's sorts run outside the GIL)
-        orders = list(pool.map(lambda a, b: np.argsort(key[a:b], kind="stable"), bounds[:-1], bounds[1:]))
-    return np.concatenate([o + a for o, a in zip(orders, bounds[:-1], strict=True)])
 
 
 def chunked(rows: np.ndarray, cols: np.ndarray, n: int,
