@@ -285,27 +285,41 @@ def _product(scenes, workers):
     return z.numpy(), pre
 
 
-def test_worker_processes_factorize_as_the_host_does(monkeypatch):
+@pytest.mark.parametrize("ahead, fits", [(4, True), (1, True), (4, False)])
+def test_worker_processes_factorize_as_the_host_does(monkeypatch, ahead, fits):
     """Three different meshes, their blocks factorized by two forked processes: the same
-    orderings and the same product, to the bit, as factorized here one after another."""
+    orderings and the same product, to the bit, as factorized here one after another. Their
+    programs come back through the shared slots where they fit (a slot is the largest element
+    blocks' size: the 12-cell beam's programs take about half of it), else pickled (``fits``
+    False: none fits); with one slot a worker, the third block's slot is the first's, reused once
+    its programs were taken."""
     from warpsoft.linear import factors
 
     monkeypatch.setattr(factors, "POOL_FROM", 2)
-    pools = []
-    real = factors.ProcessPoolExecutor
+    monkeypatch.setattr(factors, "AHEAD", ahead)
+    if not fits:
+        monkeypatch.setattr(factors, "_placed_bytes", lambda result: 1 << 62)
+    pools, placed = [], []
+    real, taken = factors.ProcessPoolExecutor, factors._taken
     monkeypatch.setattr(factors, "ProcessPoolExecutor", lambda *a, **k: pools.append(a) or real(*a, **k))
+    monkeypatch.setattr(factors, "_taken", lambda arena, future: placed.append(
+        isinstance(future.result()[0], factors._Placed)) or taken(arena, future))
     scenes = [beam(cells=c) for c in (12, 16, 20)]
     here, pre_here = _product(scenes, 1)
-    assert not pools
+    assert not pools and not placed
     there, pre_there = _product(scenes, 2)
-    assert pools == [(2,)]
+    assert pools == [(2,)] and len(placed) == 3 and placed[0] == fits and (fits or not any(placed))
     assert np.array_equal(here, there) and np.abs(here).max() > 0
     assert all(np.array_equal(a, b) for a, b in zip(pre_here.orders, pre_there.orders, strict=True))
 
 
-def test_a_block_not_positive_definite_names_its_world(monkeypatch):
-    """A block whose factorization fails is reported with the world (and scene) it serves."""
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_block_not_positive_definite_names_its_world(monkeypatch, workers):
+    """A block whose factorization fails is reported with the world (and scene) it serves, here
+    and from a worker process."""
     from warpsoft.linear import factors
+
+    monkeypatch.setattr(factors, "POOL_FROM", 2)
 
     real = factors.factor_programs
 
@@ -316,7 +330,7 @@ def test_a_block_not_positive_definite_names_its_world(monkeypatch):
 
     monkeypatch.setattr(factors, "factor_programs", failing)
     with pytest.raises(ws.SceneError, match="WorldFactors: world 1 \\(scene 'beam'\\): its system is not positive"):
-        _product([beam(cells=12), beam(cells=16)], 1)
+        _product([beam(cells=12), beam(cells=16)], workers)
 
 
 def test_a_world_whose_cg_grew_is_refactorized_alone():
@@ -498,18 +512,17 @@ def test_a_block_analysed_ahead_refactorizes_as_one_analysed_at_its_first():
     e0, e1 = int(m.world_elem_start[w]), int(m.world_elem_start[w + 1])
     blocks = wp.zeros(16 * (e1 - e0), dtype=wp.mat33d, device=m.device)
     pre.op.elastic.blocks(pre.op.rot, blocks, [(e0, e1)])  # the world's state three steps on
-    place = info.elements[0] - info.ready  # (this block alone, at the start of a fresh arena)
-    end = max(o + 4 * n for o, n in info.values) - info.ready
-    local = refactor.Block(info.pattern, info.order, info.masses, 0, (place, info.elements[1]),
-                           tuple((o - info.ready, n) for o, n in info.values))
+    (_, forward), (_, backward) = info.values  # (this block alone in a fresh arena: its element blocks, its values)
+    values = ((8 * info.elements, forward), (8 * info.elements + 8 * -(-forward // 2), backward))
+    local = refactor.Block(info.pattern, info.order, info.masses, info.elements, values)
     panels, supernodes = [], []
     for ahead in (True, False):
-        arena, cache = mmap.mmap(-1, end), {}
-        np.frombuffer(arena, np.float64, local.elements[1], place)[:] = blocks.numpy().ravel()
+        arena, cache = mmap.mmap(-1, values[1][0] + 4 * backward), {}
+        np.frombuffer(arena, np.float64, info.elements, 0)[:] = blocks.numpy().ravel()
         if ahead:
             refactor.warm(cache, b, local, pre.panel_rows)
             assert cache[b][1] is not None and pre.panel_rows in cache[b][1]._layouts  # before any real system
-        refactor.refactor(cache, arena, b, local, 2.0, 0.0, pre.panel_rows, np.float32)
+        refactor.refactor(cache, arena, b, local, 0, 2.0, 0.0, pre.panel_rows, np.float32)
         panels.append([np.frombuffer(arena, np.float32, n, o).copy() for o, n in local.values])
         supernodes.append(cache[b][1])
     for x, y in zip(*panels, strict=True):
@@ -547,22 +560,41 @@ def test_worlds_refactorized_in_workers_step_as_in_this_process(monkeypatch):
     """The workers' factors are this process's: four designs refreshed world by world (a floor of
     1, a ratio of 1) step to the same positions, bit for bit, with two worker processes as with
     none; and so they do where a worker, or this process, keeps one block's analysis alone (the
-    others dropped, analysed anew at their next refactorization)."""
+    others dropped, analysed anew at their next refactorization), and where a worker has one
+    slot for the element blocks (each job waits for the one before it to be answered)."""
     from warpsoft.linear import refactor
 
     monkeypatch.setattr(factors, "WORLD_FLOOR", 1)
     monkeypatch.setattr(factors, "WORLD_RATIO", 1.0)
     runs, kept, real = [], [], refactor._keep
     monkeypatch.setattr(refactor, "_keep", lambda cache, block, keep: kept.append(block) or real(cache, block, keep))
-    for workers, keep in ((2, refactor.KEEP_ANALYSES), (1, refactor.KEEP_ANALYSES), (2, 1), (1, 1)):
+    waits, inside = [], [False]  # per answer read, whether a job was taking its slot
+    slot_for, answer = refactor.Refactorizer._slot_for, refactor.Refactorizer._answer
+
+    def taking(self, block, job):
+        inside[0] = True
+        try:
+            return slot_for(self, block, job)
+        finally:
+            inside[0] = False
+
+    monkeypatch.setattr(refactor.Refactorizer, "_slot_for", taking)
+    monkeypatch.setattr(refactor.Refactorizer, "_answer", lambda self, k: waits.append(inside[0]) or answer(self, k))
+    plain = refactor.KEEP_ANALYSES, refactor.SLOTS
+    for workers, keep, slots in ((2, *plain), (1, *plain), (2, 1, plain[1]), (1, 1, plain[1]), (2, plain[0], 1)):
         monkeypatch.setattr(factors, "WORKERS", workers)
         monkeypatch.setattr(refactor, "KEEP_ANALYSES", keep)
+        monkeypatch.setattr(refactor, "SLOTS", slots)
+        waits.clear()
         sim = ws.Simulator(ws.finalize(four_designs()), solver="pcg", preconditioner="factors",
                            precision="float64", tolerance=1e-10, share_tolerance=0.0)
         stats = [sim.step() for _ in range(5)]
         pre = sim.solver.precond
         assert pre.world_refreshes > 0 and pre.refactorizer.workers == (workers if workers > 1 else 0)
         assert pre.refactorizer.keep == keep and len(pre.refactorizer._cache) <= keep
+        assert all(len(k) == min(slots, 4 // workers) for k in pre.refactorizer.slots)  # (the blocks a worker)
+        # (with one slot, a worker's second job waited there for its first; with more, none did)
+        assert any(waits) == (slots == 1 and workers > 1) and min(pre.refactorizer._sent) > 1
         runs.append((sim.positions(), [s.cg_iterations for s in stats], pre.world_refreshes))
     for run in runs[1:]:
         assert np.array_equal(runs[0][0], run[0]) and runs[0][1:] == run[1:]

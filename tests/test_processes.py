@@ -55,7 +55,7 @@ def _pool_parent(conn) -> None:
 
 def _refactorizer_parent(conn) -> None:
     """A parent as a batch's own refreshes have: a refactorizer of two forked workers, idle."""
-    refactor = Refactorizer({}, [8, 8], 2, 4, np.float64, "cpu")
+    refactor = Refactorizer({}, [[], []], [8, 8], 2, 4, np.float64, "cpu")
     conn.send([proc.pid for proc, _ in refactor._procs])
     time.sleep(120)
 

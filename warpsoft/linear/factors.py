@@ -33,12 +33,14 @@ for many the factors (bandwidth-bound).
 from __future__ import annotations
 
 import math
+import mmap
 import multiprocessing
 import os
 from collections import deque
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
+from dataclasses import fields, replace
 from functools import partial
+from typing import NamedTuple
 
 import numpy as np
 import warp as wp
@@ -87,11 +89,13 @@ PANEL_SPREAD = (8.0, 1.0)
 # WIDE_LANES threads a panel (kernels.wide_panel_kernel): there a level lasts as long as its longest
 # panel's walk, and the forward solve's last levels read up to 2,208 columns a panel
 WIDE_FROM, WIDE_LANES = 256.0, 128
+# a first factorization's state its forked workers inherit (a fork keeps a module's globals; nothing
+# pickled): by its token, (the shared memory of its slots, a slot's bytes, mesh -> its pattern)
+_INHERITED: dict[int, tuple] = {}
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
-POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07 s on the CPU VM, 6.5 MB to send back)
-# the blocks sent ahead to them, per worker: the rest wait (their systems unmade), their results taken in
-# order as they come (all sent at once, a Diamond's system, job and result held about 7.7 MB of the host
-# each: 64 on the CPU VM; 4096 of them, about 31 GB)
+POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07-0.15 s on the CPU VM)
+# the blocks sent ahead to them, per worker, each in a slot of shared memory (the largest world's element
+# blocks: 4.6-6.9 MB for a Diamond): the rest wait, their results taken in order as they come
 AHEAD = 4
 # a world's own refresh (panels): its block is factorized anew at its state, between steps, when its CG
 # needed more than WORLD_RATIO times the iterations of its first solve after its block's last
@@ -128,17 +132,74 @@ def factor_programs(sparsity: Sparsity, values: np.ndarray, ordering: str, panel
     return order, panels
 
 
-def _ahead(pool: ProcessPoolExecutor, jobs, ahead: int):
-    """Each of ``jobs`` (argument tuples of :func:`factor_programs`) sent to ``pool``, at most
-    ``ahead`` of them waiting: yields, in order, each one's ``result`` (a call), the next job
-    sent once it is taken."""
-    waiting = deque()
-    for job in jobs:
-        waiting.append(pool.submit(factor_programs, *job))
-        if len(waiting) >= ahead:
-            yield waiting.popleft().result
-    while waiting:
-        yield waiting.popleft().result
+class _Placed(NamedTuple):
+    """An array a worker wrote into the shared memory: its first byte there, numpy type and shape."""
+
+    offset: int
+    dtype: str
+    shape: tuple
+
+
+def _arrays(result: tuple) -> list[np.ndarray]:
+    """:func:`factor_programs`'s ``(order, programs)``'s arrays: the order, then each program's."""
+    order, programs = result
+    return [order] + [getattr(p, f.name) for p in programs for f in fields(p)
+                      if isinstance(getattr(p, f.name), np.ndarray)]
+
+
+def _rebuilt(result: tuple, take) -> tuple:
+    """``result`` with each array ``a`` (:func:`_arrays`) replaced by ``take(a)``."""
+    order, programs = result
+    return take(order), tuple(replace(p, **{f.name: take(getattr(p, f.name)) for f in fields(p)
+                                            if isinstance(getattr(p, f.name), (np.ndarray, _Placed))})
+                              for p in programs)
+
+
+def _aligned(nbytes: int) -> int:
+    """``nbytes`` rounded up to a multiple of 8."""
+    return -(-nbytes // 8) * 8
+
+
+def _placed_bytes(result: tuple) -> int:
+    """The bytes ``result``'s arrays take in a slot, each from an 8-byte boundary."""
+    return sum(_aligned(a.nbytes) for a in _arrays(result))
+
+
+def _factor_in_slot(token: int, slot: int, key, count: int, masses: np.ndarray | None, stiffness_scale: float,
+                    ordering: str, panel_rows: int, kept: tuple) -> tuple:
+    """In a forked worker: :func:`factor_programs` of the system whose ``count`` element-block
+    numbers (float64, unscaled) the parent put in ``slot`` of the shared memory it left in
+    :data:`_INHERITED` under ``token`` (with the meshes' patterns, ``key`` this one's), times
+    ``stiffness_scale``, with ``masses`` (scaled, or None) on its diagonal. Its arrays go back in
+    the same slot (:class:`_Placed`), or pickled where they do not fit."""
+    arena, size, patterns = _INHERITED[token]
+    pattern = patterns[key]
+    entries = np.frombuffer(arena, np.float64, count, slot * size)
+    result = factor_programs(pattern.sparsity(), lower_system(pattern, stiffness_scale * entries, masses),
+                             ordering, panel_rows, kept)
+    if _placed_bytes(result) > size:
+        return result
+    at = slot * size
+
+    def put(a: np.ndarray) -> _Placed:
+        nonlocal at
+        np.frombuffer(arena, a.dtype, a.size, at)[:] = a.reshape(-1)
+        placed, at = _Placed(at, a.dtype.str, a.shape), at + _aligned(a.nbytes)
+        return placed
+
+    return _rebuilt(result, put)
+
+
+def _taken(arena: mmap.mmap, future) -> tuple:
+    """A worker's result (:func:`_factor_in_slot`), its arrays copied out of its slot."""
+    result = future.result()
+
+    def take(a):
+        if not isinstance(a, _Placed):
+            return a
+        return np.frombuffer(arena, np.dtype(a.dtype), math.prod(a.shape), a.offset).reshape(a.shape).copy()
+
+    return _rebuilt(result, take)
 
 
 def _stacked(parts: list[np.ndarray], dtype, device, into: wp.array | None = None) -> wp.array:
@@ -348,22 +409,16 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         rows = self.panel_rows if self.layout == "panels" else 0
         kept = (np.dtype(np.float64 if self.dtype == wp.float64 else np.float32),
                 np.dtype(wp.dtype_to_numpy(self.index_dtype)))
-        jobs = ((self.patterns[self.mesh_of[w]].sparsity(), self._system(blocks, w), self.ordering, rows, kept)
-                for w in self.first_world)
         workers = min(self.workers or usable_cores(), len(self.first_world))
         # one BLAS thread for the blocks' small dense products: the workers, forked inside, keep
         # the limit (16 processes of 16 OpenBLAS threads each would oversubscribe 16 cores)
         with threadpool_limits(1):
             if workers > 1 and len(self.first_world) >= POOL_FROM and "fork" in multiprocessing.get_all_start_methods():
-                # forked (Linux): the workers run CHOLMOD, METIS and numpy on what they are sent, never
-                # Warp or CUDA. A spawned one would first run the user's script again, up to here,
-                # wherever it lacks the `if __name__ == "__main__"` guard
-                with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
-                                         initializer=bind_to_parent, initargs=(os.getpid(),)) as pool:
-                    self._take(m, first, zip(self.first_world, _ahead(pool, jobs, AHEAD * workers), strict=True))
+                self._take(m, first, self._in_workers(blocks, workers, rows, kept))
             else:
-                self._take(m, first, ((w, partial(factor_programs, *job))
-                                      for w, job in zip(self.first_world, jobs, strict=True)))
+                self._take(m, first, ((w, partial(factor_programs, self.patterns[self.mesh_of[w]].sparsity(),
+                                                  self._system(blocks, w), self.ordering, rows, kept))
+                                      for w in self.first_world))
         self.take_frame()
         self._world_first[:] = 0  # every world's count starts anew
         if self._due is not None:
@@ -377,6 +432,48 @@ class WorldFactors(OwnRefreshes, WorldGroups):
             release_freed()
             self._start_own()
             self.refactorizer = self._refactorizer()
+
+    def _in_workers(self, blocks: wp.array, workers: int, rows: int, kept: tuple):
+        """Each block's ``(world, call)`` in order (:meth:`_take`), factorized by ``workers`` forked
+        processes. A block's element blocks go to its worker, and its programs come back, through a
+        slot of memory they share, :data:`AHEAD` slots a worker: nothing big crosses a pipe, and the
+        systems are summed in the workers (1024 Diamonds sent as pickled systems and programs: the
+        first step's host spent about 8 s in pipes and 6 s making the systems, H200 machine). A
+        block's slot is filled once the block :data:`AHEAD` times the workers before it is taken.
+        The workers run CHOLMOD, METIS and numpy on their slots, never Warp or CUDA (forked on
+        Linux: a spawned one would first run the user's script again, up to here, wherever it lacks
+        the ``if __name__ == "__main__"`` guard)."""
+        m, op = self.op.model, self.op
+        starts = m.world_elem_start
+        count = {int(w): 144 * int(starts[w + 1] - starts[w]) for w in self.first_world}  # float64 numbers
+        slots, size = AHEAD * workers, 8 * max(count.values())
+        arena = mmap.mmap(-1, slots * size)
+        token = id(arena)
+        _INHERITED[token] = (arena, size, {self.mesh_of[w]: self.patterns[self.mesh_of[w]] for w in count})
+        sync = m.device.is_cuda
+        try:
+            with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
+                                     initializer=bind_to_parent, initargs=(os.getpid(),)) as pool:
+                waiting = deque()
+                for b, w in enumerate(self.first_world):
+                    w, slot = int(w), b % slots
+                    into = np.frombuffer(arena, np.float64, count[w], slot * size).reshape(-1, 3, 3)
+                    wp.copy(wp.array(into, dtype=wp.mat33d, device="cpu", copy=False), blocks,
+                            src_offset=16 * int(starts[w]), count=count[w] // 9)
+                    if sync:
+                        wp.synchronize_stream(m.device.stream)
+                    del into
+                    masses = op.mass_scale * m.mass_np[m.world_nodes(w)] if op.mass_scale != 0.0 else None
+                    waiting.append((w, pool.submit(_factor_in_slot, token, slot, self.mesh_of[w], count[w], masses,
+                                                   op.stiffness_scale, self.ordering, rows, kept)))
+                    if len(waiting) >= slots:
+                        w0, future = waiting.popleft()
+                        yield w0, partial(_taken, arena, future)
+                while waiting:
+                    w0, future = waiting.popleft()
+                    yield w0, partial(_taken, arena, future)
+        finally:
+            _INHERITED.pop(token, None)
 
     def _take(self, m, first: bool, results) -> None:
         """Lay out the blocks' programs, ``results`` (an iterable of ``(world, call)``) in block

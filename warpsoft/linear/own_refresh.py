@@ -146,10 +146,10 @@ class OwnRefreshes:
         elements = {b: 144 * int(m.world_elem_start[w + 1] - m.world_elem_start[w]) for b, w in worlds.items()}
         values = {b: tuple(int(s[b + 1] - s[b]) for s in self._value_start) for b in own}
         itemsize = 8 if self.dtype == wp.float64 else 4
-        places, arenas = Refactorizer.layout(elements, values, workers, itemsize)
+        places, slots, arenas = Refactorizer.layout(elements, values, workers, itemsize)
         has_mass = getattr(m, "mass_np", None) is not None
         blocks = {b: Block(self.patterns[self.mesh_of[w]], self.orders[b],
-                           m.mass_np[m.world_nodes(w)].copy() if has_mass else None, *places[b])
+                           m.mass_np[m.world_nodes(w)].copy() if has_mass else None, elements[b], places[b])
                   for b, w in worlds.items()}
         npd = np.float64 if itemsize == 8 else np.float32
-        return Refactorizer(blocks, arenas, self.world_lag, self.panel_rows, npd, m.device)
+        return Refactorizer(blocks, slots, arenas, self.world_lag, self.panel_rows, npd, m.device)

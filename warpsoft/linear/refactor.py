@@ -26,10 +26,13 @@ worker processes do it while the device runs the steps:
   hold its next solve for that time). The trajectory therefore never depends on how
   fast the host was; with a lag of 0 the factor is installed at the boundary that found it due.
 
-Each block has its worker (its index modulo the workers) and its place in that worker's shared
-memory (after a header: the blocks it analysed ahead; its mark, its element blocks, then its
-values), laid out when the workers are forked:
-they inherit each block's pattern, ordering and masses, and send back only a status. A worker
+Each block has its worker (its index modulo the workers) and its values' place in that worker's
+shared memory; the element blocks come through :data:`SLOTS` slots a worker (each with its mark),
+taken in turn, a job's slot waiting for the worker to answer the job before in it (its slot's element
+blocks then read). All is laid out when the workers are forked (after a header: the blocks the
+worker analysed ahead): they inherit each block's pattern, ordering and masses, and send back only a
+status. (A place for every block's element blocks, as before, made 1024 Diamonds' shared memory 6.2 GB,
+5 s of page locking on the H200's host; their values take 1.6 GB.) A worker
 analyses its blocks' supernodes while it has nothing to do (:func:`warm`, on a made-up matrix of
 the pattern: the supernodes depend on the pattern alone), so that a block's first refactorization
 costs what the later ones do. On CUDA the shared memory is page-locked once the workers are
@@ -72,6 +75,10 @@ READY_TIMEOUT = 120.0
 # dropped, or never analysed ahead, costs its next refactorization the analysis (25-32 ms for a
 # Diamond on the 2-core VM, against 10-13 analysed)
 KEEP_ANALYSES = 64
+# the element blocks' slots a worker has (fewer when it has fewer blocks): the blocks sent at a boundary
+# (at most WORLD_BATCH of factors.py, 16) spread over the workers by their index, and a job's slot is
+# free again once its worker answered it, within a step or two
+SLOTS = 8
 # pages left locked by refactorizers shut down while their device captured a graph: ``(device,
 # addresses, arenas)``, unlocked at the next chance outside a capture (the arenas kept mapped till then)
 _UNLOCK_LATER: list[tuple] = []
@@ -87,18 +94,26 @@ def lower_system(pattern: Pattern, entries: np.ndarray, masses: np.ndarray | Non
 @dataclass
 class Block:
     """What a block's worker knows of it: its world's ``pattern``, the factor's ``order`` (the DOF
-    at each place), the world's nodes' ``masses`` ``(nodes,)`` kg (None without mass), and its
-    places in the shared memory (bytes): ``ready`` the offset of its mark (int64: the last job
-    whose element blocks landed, plus one), ``elements`` ``(offset, numbers)`` of its element
-    blocks (float64), ``values`` ``((offset, numbers), (offset, numbers))`` of its forward and
-    backward panels' values (in the factors' precision)."""
+    at each place), the world's nodes' ``masses`` ``(nodes,)`` kg (None without mass), its
+    ``elements`` (the numbers of its element blocks, float64) and its ``values``' places in the
+    shared memory, ``((offset, numbers), (offset, numbers))`` (bytes; numbers in the factors'
+    precision) of its forward and backward panels' values."""
 
     pattern: Pattern
     order: np.ndarray
     masses: np.ndarray | None
-    ready: int
-    elements: tuple[int, int]
+    elements: int
     values: tuple[tuple[int, int], tuple[int, int]]
+
+
+@dataclass
+class Slot:
+    """Where a worker finds a job's element blocks in its shared memory (bytes): ``ready`` the
+    offset of the slot's mark (int64: the last job whose element blocks landed there, plus one),
+    ``at`` that of its element blocks (float64)."""
+
+    ready: int
+    at: int
 
 
 def _factor(cache: dict, block: int, info: Block, system: np.ndarray):
@@ -131,14 +146,14 @@ def warm(cache: dict, block: int, info: Block, panel_rows: int) -> None:
     supernodes.panel_values(L, panel_rows)  # (the panels' places, found once)
 
 
-def refactor(cache: dict, arena, block: int, info: Block, stiffness_scale: float, mass_scale: float,
+def refactor(cache: dict, arena, block: int, info: Block, at: int, stiffness_scale: float, mass_scale: float,
              panel_rows: int, dtype: type) -> None:
-    """Block ``block``'s factor at the element blocks in ``arena`` (unscaled, then times
+    """Block ``block``'s factor at the element blocks in ``arena`` from byte ``at`` (unscaled, then times
     ``stiffness_scale``; ``mass_scale`` times its masses on the diagonal), in its ordering, its
     panels' values of ``panel_rows`` rows written to ``arena`` in ``dtype`` (``info``'s places).
     ``cache`` keeps the block's CHOLMOD analysis and supernodes between calls. Raises
     ArithmeticError when the system is not positive definite."""
-    elements = np.frombuffer(arena, np.float64, info.elements[1], info.elements[0])
+    elements = np.frombuffer(arena, np.float64, info.elements, at)
     masses = None if info.masses is None or mass_scale == 0.0 else mass_scale * info.masses
     L, supernodes = _factor(cache, block, info, lower_system(info.pattern, stiffness_scale * elements, masses))
     for values, (offset, count) in zip(supernodes.panel_values(L, panel_rows), info.values, strict=True):
@@ -147,9 +162,9 @@ def refactor(cache: dict, arena, block: int, info: Block, stiffness_scale: float
         np.frombuffer(arena, dtype, count, offset)[:] = values
 
 
-def _landed(arena, block: int, info: Block, job: int) -> None:
-    """Wait until job ``job``'s element blocks of ``block`` are in ``arena`` (its mark reached)."""
-    mark = np.frombuffer(arena, np.int64, 1, info.ready)
+def _landed(arena, block: int, slot: Slot, job: int) -> None:
+    """Wait until job ``job``'s element blocks of ``block`` are in ``arena`` (its ``slot``'s mark reached)."""
+    mark = np.frombuffer(arena, np.int64, 1, slot.ready)
     deadline = time.monotonic() + READY_TIMEOUT
     while mark[0] <= job:
         if time.monotonic() > deadline:
@@ -167,9 +182,10 @@ def _keep(cache: dict, block: int, keep: int) -> None:
         cache.pop(next(iter(cache)))
 
 
-def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type, parent: int, keep: int) -> None:
-    """A worker: for each ``(job, block, stiffness_scale, mass_scale)`` received, once its element
-    blocks landed, :func:`refactor`, then ``(job, None or the error, seconds waiting for the blocks,
+def _serve(conn, arena, blocks: dict, slots: list[Slot], panel_rows: int, dtype: type, parent: int,
+           keep: int) -> None:
+    """A worker: for each ``(job, block, slot, stiffness_scale, mass_scale)`` received, once its element
+    blocks landed in ``slots[slot]``, :func:`refactor`, then ``(job, None or the error, seconds waiting for the blocks,
     seconds refactorizing)`` sent back; None stops it. While nothing waits, it analyses its first
     ``keep`` blocks one by one (:func:`warm`), and it keeps the analyses of the ``keep`` blocks it
     used last. It ends when its ``parent`` (pid) does (:func:`~warpsoft.processes.bind_to_parent`)."""
@@ -189,13 +205,14 @@ def _serve(conn, arena, blocks: dict, panel_rows: int, dtype: type, parent: int,
         message = conn.recv()
         if message is None:
             return
-        job, block, stiffness_scale, mass_scale = message
+        job, block, slot, stiffness_scale, mass_scale = message
         start = time.perf_counter()
         landed = start
         try:
-            _landed(arena, block, blocks[block], job)
+            _landed(arena, block, slots[slot], job)
             landed = time.perf_counter()
-            refactor(cache, arena, block, blocks[block], stiffness_scale, mass_scale, panel_rows, dtype)
+            refactor(cache, arena, block, blocks[block], slots[slot].at, stiffness_scale, mass_scale, panel_rows,
+                     dtype)
             error = None
         except Exception as e:  # (sent back, raised where the job is installed)
             error = e
@@ -226,6 +243,7 @@ class Refactorizer:
     Args:
         blocks: block -> :class:`Block` (the offsets: see :meth:`layout`), of the blocks it may be
             given; block ``b`` goes to worker ``b % workers``.
+        slots: each worker's element slots (:class:`Slot`, :meth:`layout`).
         arenas: each worker's shared memory, bytes (:meth:`layout`); one arena: no worker, the work
             runs in this process at submission (the caller gives one where processes cannot fork).
         lag: boundaries between a block's submission and its installation (0: the same one).
@@ -236,15 +254,15 @@ class Refactorizer:
         keep: the most blocks' analyses a worker keeps, and analyses ahead (default
             :data:`KEEP_ANALYSES`).
 
-    Attributes: ``workers`` (processes; 0: none), ``boundary`` (the boundaries counted), ``pending``
+    Attributes: ``workers`` (processes; 0: none), ``blocks``, ``slots`` (as given), ``boundary`` (the boundaries counted), ``pending``
     (block -> :class:`Job`), ``waited`` (seconds the host waited on workers, in all), ``submitted``,
     ``landing`` and ``working`` (per job a worker answered: seconds it waited for the element
     blocks to land, seconds it refactorized),
     ``page_locked`` (whether the shared memory is: the copies then run beside the step).
     """
 
-    def __init__(self, blocks: dict[int, Block], arenas: list[int], lag: int, panel_rows: int, dtype: type,
-                 device, keep: int | None = None):
+    def __init__(self, blocks: dict[int, Block], slots: list[list[Slot]], arenas: list[int], lag: int,
+                 panel_rows: int, dtype: type, device, keep: int | None = None):
         if lag < 0:
             raise ValueError(f"Refactorizer: the lag is a count of step boundaries, got {lag}")
         self.keep = KEEP_ANALYSES if keep is None else int(keep)
@@ -253,21 +271,23 @@ class Refactorizer:
         self.lag, self.panel_rows, self.dtype = int(lag), int(panel_rows), dtype
         self.boundary, self.pending, self.waited, self.submitted = 0, {}, 0.0, 0
         self.landing, self.working = [], []  # per job answered by a worker: s waiting for its blocks, s working
-        self.blocks = blocks
+        self.blocks, self.slots = blocks, slots
         self.workers = len(arenas) if len(arenas) > 1 else 0
+        self._sent = [0] * len(arenas)  # per worker, the jobs sent to it (its next slot: this modulo its slots)
+        self._occupant = [[None] * len(k) for k in slots]  # per worker and slot, its last job
         self._arenas = [mmap.mmap(-1, max(size, 1)) for size in arenas]  # shared with the forked workers
         self._errors: dict[int, Exception | None] = {}  # job -> its outcome, once known
         self._dropped: set[int] = set()  # jobs cancelled before their answer was read
         self._queues = [deque() for _ in arenas]  # per worker, its jobs' ids in the order sent
         self._cache: dict = {}  # this process's analyses (no workers)
-        self._view: dict = {}  # block -> its places as CPU arrays (:meth:`_views`)
+        self._view: dict = {}  # block -> its values' places as CPU arrays (:meth:`_values_of`)
         self._procs = []
         context = multiprocessing.get_context("fork") if self.workers else None
         for k in range(self.workers):  # forked: they run CHOLMOD and numpy, never Warp or CUDA
             mine = {b: info for b, info in blocks.items() if b % self.workers == k}
             parent, child = context.Pipe()
             proc = context.Process(target=_serve, name=f"warpsoft-refactor-{k}", daemon=True,
-                                   args=(child, self._arenas[k], mine, self.panel_rows, dtype, os.getpid(),
+                                   args=(child, self._arenas[k], mine, slots[k], self.panel_rows, dtype, os.getpid(),
                                          self.keep))
             proc.start()
             child.close()
@@ -282,40 +302,76 @@ class Refactorizer:
 
     @staticmethod
     def layout(elements: dict[int, int], values: dict[int, tuple[int, int]], workers: int,
-               itemsize: int) -> tuple[dict, list[int]]:
-        """Each block's places in its worker's shared memory: ``elements`` block -> its element
-        blocks' numbers (float64), ``values`` block -> its forward and backward values (of
-        ``itemsize`` bytes). Returns block -> ``(ready, elements (offset, count), values ((offset,
-        count), (offset, count)))`` and each arena's bytes (``workers`` of them, or one with 1 or
-        less)."""
+               itemsize: int, slots: int | None = None) -> tuple[dict, list[list[Slot]], list[int]]:
+        """Each block's values' places in its worker's shared memory, and each worker's element
+        slots: ``elements`` block -> its element blocks' numbers (float64), ``values`` block -> its
+        forward and backward values (of ``itemsize`` bytes), ``slots`` a worker (default
+        :data:`SLOTS`; fewer where it has fewer blocks), each the size of its largest blocks'.
+        Returns block -> its values ``((offset, count), (offset, count))``, each worker's
+        :class:`Slot` list, and each arena's bytes (``workers`` of them, or one with 1 or less)."""
         arenas = max(int(workers), 1)
-        sizes, places = [8] * arenas, {}  # (each arena's header: the blocks its worker analysed ahead)
-        for b in sorted(elements):
-            k = b % arenas
-            ready = sizes[k]
-            at = ready + 8
-            forward, backward = values[b]
-            f0 = at + 8 * elements[b]
-            b0 = f0 + -(-itemsize * forward // 8) * 8
-            places[b] = (ready, (at, elements[b]), ((f0, forward), (b0, backward)))
-            sizes[k] = b0 + -(-itemsize * backward // 8) * 8
-        return places, sizes
+        slots = SLOTS if slots is None else int(slots)
+        if slots < 1:
+            raise ValueError(f"Refactorizer: a worker needs at least one slot, got {slots}")
+        mine = [[b for b in sorted(elements) if b % arenas == k] for k in range(arenas)]
+        sizes, places, slot_lists = [], {}, []
+        for blocks in mine:
+            at, largest = 8, max((elements[b] for b in blocks), default=0)  # (the header: the blocks analysed ahead)
+            listed = []
+            for _ in range(min(slots, len(blocks))):
+                listed.append(Slot(at, at + 8))
+                at += 8 + 8 * largest
+            for b in blocks:
+                forward, backward = values[b]
+                f0 = at
+                b0 = f0 + -(-itemsize * forward // 8) * 8
+                places[b] = ((f0, forward), (b0, backward))
+                at = b0 + -(-itemsize * backward // 8) * 8
+            slot_lists.append(listed)
+            sizes.append(at)
+        return places, slot_lists, sizes
 
-    def _views(self, block: int) -> tuple[wp.array, wp.array, tuple[wp.array, wp.array]]:
-        """Block ``block``'s places in its arena as CPU arrays (made once): its element blocks
-        (mat33d), its mark (int64) and its forward and backward values."""
+    def _values_of(self, block: int) -> tuple[wp.array, wp.array]:
+        """Block ``block``'s forward and backward values in its arena, as CPU arrays (made once)."""
         views = self._view.get(block)
         if views is None:
-            info, arena = self.blocks[block], self._arenas[block % max(self.workers, 1)]
-            offset, count = info.elements
+            arena = self._arenas[block % max(self.workers, 1)]
             kind = wp.dtype_from_numpy(np.dtype(self.dtype))
-            views = self._view[block] = (
-                wp.array(np.frombuffer(arena, np.float64, count, offset).reshape(-1, 3, 3), dtype=wp.mat33d,
-                         device="cpu", copy=False),
-                wp.array(np.frombuffer(arena, np.int64, 1, info.ready), dtype=wp.int64, device="cpu", copy=False),
-                tuple(wp.array(np.frombuffer(arena, self.dtype, n, o), dtype=kind, device="cpu", copy=False)
-                      for o, n in info.values))
+            views = self._view[block] = tuple(
+                wp.array(np.frombuffer(arena, self.dtype, n, o), dtype=kind, device="cpu", copy=False)
+                for o, n in self.blocks[block].values)
         return views
+
+    def _slot_for(self, block: int, job: int) -> tuple[int, int]:
+        """The worker and the slot of job ``job`` (of ``block``): the worker's next, once the job
+        before in it has been answered (its element blocks read)."""
+        k = block % max(self.workers, 1)
+        s = self._sent[k] % len(self.slots[k])
+        self._sent[k] += 1
+        before = self._occupant[k][s]
+        if self.workers and before is not None:
+            start = time.perf_counter()
+            while before in self._queues[k]:
+                self._answer(k)
+            self.waited += time.perf_counter() - start
+        self._occupant[k][s] = job
+        return k, s
+
+    def _answer(self, k: int) -> None:
+        """Read worker ``k``'s next answer (it answers in the order it was told)."""
+        proc, conn = self._procs[k]
+        try:
+            done, error, landing, working = conn.recv()
+        except EOFError:
+            raise RuntimeError(f"Refactorizer: worker {k} stopped (exit code {proc.exitcode})") from None
+        if self._queues[k].popleft() != done:
+            raise RuntimeError(f"Refactorizer: worker {k} answered job {done} out of order")
+        self.landing.append(landing)
+        self.working.append(working)
+        if done in self._dropped:
+            self._dropped.discard(done)
+        else:
+            self._errors[done] = error
 
     def submit(self, blocks: list[int], worlds: list[int], elements: wp.array, stiffness_scale: float,
                mass_scale: float, spans: list[tuple[int, int]], frame: wp.array) -> None:
@@ -330,33 +386,36 @@ class Refactorizer:
                          device=elements.device)  # (each copied after its blocks)
         if self._side is not None:  # (after the work that made them, beside what follows)
             self._side.wait_event(wp.get_stream(elements.device).record_event())
+        total = sum(self.blocks[b].elements for b in blocks) // 9
+        if total != elements.size:
+            raise ValueError(f"Refactorizer: {elements.size} element blocks given, the blocks' worlds have {total}")
         at = 0
         for i, (block, world, span) in enumerate(zip(blocks, worlds, spans, strict=True)):
-            shared, mark, _ = self._views(block)
-            wp.copy(shared, elements, src_offset=at, count=shared.size, stream=self._side)
+            job, count = first + i, self.blocks[block].elements // 9
+            k, s = self._slot_for(block, job)
+            arena, slot = self._arenas[k], self.slots[k][s]
+            shared = wp.array(np.frombuffer(arena, np.float64, 9 * count, slot.at).reshape(-1, 3, 3),
+                              dtype=wp.mat33d, device="cpu", copy=False)
+            mark = wp.array(np.frombuffer(arena, np.int64, 1, slot.ready), dtype=wp.int64, device="cpu", copy=False)
+            wp.copy(shared, elements, src_offset=at, count=count, stream=self._side)
             wp.copy(mark, marks, src_offset=i, count=1, stream=self._side)
-            at += shared.size
-            job, k = first + i, block % max(self.workers, 1)
-            if self.workers:
-                self._procs[k][1].send((job, block, float(stiffness_scale), float(mass_scale)))
-                self._queues[k].append(job)
+            at += count
             self.pending[block] = Job(block, world, self.boundary + self.lag, job, span, frame, (elements, marks))
-        if at != elements.size:
-            raise ValueError(f"Refactorizer: {elements.size} element blocks given, the blocks' worlds have {at}")
-        self.submitted += len(blocks)
-        if self.workers:
-            return
-        if self._side is not None:
-            wp.synchronize_stream(self._side)
-        with threadpool_limits(1):
-            for i, block in enumerate(blocks):
+            if self.workers:
+                self._procs[k][1].send((job, block, s, float(stiffness_scale), float(mass_scale)))
+                self._queues[k].append(job)
+                continue
+            if self._side is not None:  # (here, at once: the slot is the next job's)
+                wp.synchronize_stream(self._side)
+            with threadpool_limits(1):
                 try:
-                    refactor(self._cache, self._arenas[0], block, self.blocks[block], stiffness_scale, mass_scale,
+                    refactor(self._cache, arena, block, self.blocks[block], slot.at, stiffness_scale, mass_scale,
                              self.panel_rows, self.dtype)
                     _keep(self._cache, block, self.keep)
-                    self._errors[first + i] = None
+                    self._errors[job] = None
                 except ArithmeticError as e:  # raised where the job is installed, as a worker's would be
-                    self._errors[first + i] = e
+                    self._errors[job] = e
+        self.submitted += len(blocks)
 
     def settle(self, timeout: float = 600.0) -> float:
         """Wait until every worker has analysed its blocks ahead (:func:`warm`, ``keep`` at most);
@@ -380,21 +439,8 @@ class Refactorizer:
         jobs = [self.pending.pop(b) for b in sorted(self.pending) if self.pending[b].at <= self.boundary]
         start = time.perf_counter()
         for job in jobs:
-            k = job.block % max(self.workers, 1)
-            while job.id not in self._errors:  # a worker answers in the order it was told
-                proc, conn = self._procs[k]
-                try:
-                    done, error, landing, working = conn.recv()
-                except EOFError:
-                    raise RuntimeError(f"Refactorizer: worker {k} stopped (exit code {proc.exitcode})") from None
-                if self._queues[k].popleft() != done:
-                    raise RuntimeError(f"Refactorizer: worker {k} answered job {done} out of order")
-                self.landing.append(landing)
-                self.working.append(working)
-                if done in self._dropped:
-                    self._dropped.discard(done)
-                else:
-                    self._errors[done] = error
+            while job.id not in self._errors:
+                self._answer(job.block % max(self.workers, 1))
         self.waited += time.perf_counter() - start
         return jobs
 
@@ -404,7 +450,7 @@ class Refactorizer:
         error = self._errors.pop(job.id)
         if error is not None:
             raise error
-        return self._views(job.block)[2]
+        return self._values_of(job.block)
 
     def install(self, copies: list[tuple[wp.array, int, wp.array]]) -> None:
         """Copy installed values to the device: ``copies`` ``(dest, offset, values)``, each CPU
