@@ -254,10 +254,10 @@ class Refactorizer:
         keep: the most blocks' analyses a worker keeps, and analyses ahead (default
             :data:`KEEP_ANALYSES`).
 
-    Attributes: ``workers`` (processes; 0: none), ``blocks``, ``slots`` (as given), ``boundary`` (the boundaries counted), ``pending``
-    (block -> :class:`Job`), ``waited`` (seconds the host waited on workers, in all), ``submitted``,
-    ``landing`` and ``working`` (per job a worker answered: seconds it waited for the element
-    blocks to land, seconds it refactorized),
+    Attributes: ``workers`` (processes; 0: none), ``blocks``, ``slots`` (as given), ``boundary``
+    (the boundaries counted), ``pending`` (block -> :class:`Job`), ``waited`` (seconds the host
+    waited on workers, in all), ``submitted``, ``landing`` and ``working`` (per job a worker
+    answered: seconds it waited for the element blocks to land, seconds it refactorized),
     ``page_locked`` (whether the shared memory is: the copies then run beside the step).
     """
 
