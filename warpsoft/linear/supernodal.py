@@ -256,49 +256,81 @@ class Supernodal:
 
     def _panel_layout(self, rows: int) -> tuple[Panels, Panels]:
         """The panels of ``rows`` rows (:meth:`panels`), each value the place it is read from in
-        :meth:`panel_values`' supernode rows (found once per ``rows``)."""
+        :meth:`panel_values`' supernode rows (found once per ``rows``). A supernode ``[a, b)``'s
+        panel of rows ``i0..i1``: forward, it reads the input's ``a..a + i1`` (``T^-1`` lower: zeros
+        right of each row's diagonal) and the columns of ``J`` its last row reads (the patterns
+        grow down a supernode: the earlier rows' are inside, with zeros elsewhere); backward, the
+        input's ``a + i0..b`` (``T^-T`` upper) and all of ``R``."""
         if rows < 1:
             raise ValueError(f"Supernodal: a panel needs at least one row, got {rows}")
         if rows in self._layouts:
             return self._layouts[rows]
-        chunks = {"forward": [], "backward": []}  # per panel: (level, first row, inputs, outputs, places)
         width = self.end - self.first
-        outside = [np.diff(self.indptr)[a] - w for a, w in zip(self.first, width, strict=True)]  # |R|
-        at = [np.concatenate([[0], np.cumsum(width * (width + [len(j[0]) for j in self.left]))]),
-              np.concatenate([[0], np.cumsum(width * (width + outside))])]
-        for s, (a, b) in enumerate(zip(self.first, self.end, strict=True)):
-            w, (J, pattern, _, _) = b - a, self.left[s]
-            R = self.indices[self.indptr[a] + w:self.indptr[a + 1]]
-            for i0 in range(0, w, rows):
-                i1 = min(i0 + rows, w)
-                here = np.arange(i0, i1)[:, None]
-                # forward: rows i0..i1 read the input's a..a + i1 (T^-1 lower: zeros right of each
-                # row's diagonal) and the columns of J that the last of them reads (the patterns
-                # grow down a supernode: the earlier rows' are inside, with zeros elsewhere)
-                reads = np.flatnonzero(pattern[i1 - 1]) if len(J) else np.zeros(0, dtype=np.int64)
-                chunks["forward"].append((self.forward_level[s], a + i0, a + np.arange(i1), J[reads],
-                                          at[0][s] + here * (w + len(J)) + np.concatenate([np.arange(i1), w + reads])))
-                # backward: rows i0..i1 read the input's a + i0..b (T^-T upper) and all of R
-                chunks["backward"].append((self.backward_level[s], a + i0, a + np.arange(i0, w), R,
-                                           at[1][s] + here * (w + len(R)) + np.arange(i0, w + len(R))))
+        left = np.array([len(j[0]) for j in self.left], dtype=np.int64)  # |J| a supernode
+        below = np.diff(self.indptr)[self.first] - width  # |R|
+        at = [np.concatenate([[0], np.cumsum(width * (width + left))]),
+              np.concatenate([[0], np.cumsum(width * (width + below))])]
+        per = -(-width // rows)  # panels a supernode
+        s = np.repeat(np.arange(len(width)), per)  # each panel's supernode
+        i0 = (np.arange(len(s)) - np.repeat(_starts(per), per)) * rows
+        i1 = np.minimum(i0 + rows, width[s])
+        a, w = self.first[s], width[s]
+        # forward: the columns of J the last row reads (its pattern's), where in J, and each panel's count
+        last = [self.left[k][1][r - 1] for k, r in zip(s.tolist(), i1.tolist(), strict=True)]
+        hit = np.flatnonzero(np.concatenate(last)) if last else np.zeros(0, dtype=np.int64)
+        hit_panel = np.searchsorted(np.cumsum(left[s]), hit, side="right")
+        in_J = hit - _starts(left[s])[hit_panel]
+        J = np.concatenate([j[0] for j in self.left]) if self.left else np.zeros(0, dtype=np.int64)
+        forward = _panels(self.forward_level[s], a + i0, i1 - i0, (a, i1), (J[_starts(left)[s[hit_panel]] + in_J],
+                          np.bincount(hit_panel, minlength=len(s))), (np.zeros(len(s), dtype=np.int64),
+                          w[hit_panel] + in_J), at[0][s], i0, w + left[s])
+        # backward: the rows R below each supernode's triangle, read whole
+        R = self.indices[_ranges(self.indptr[a] + w, below[s])]
+        backward = _panels(self.backward_level[s], a + i0, i1 - i0, (a + i0, w - i0), (R, below[s]),
+                           (i0, _ranges(w, below[s])), at[1][s], i0, w + below[s])
         self._rows_at, self._rows_size = at, (int(at[0][-1]), int(at[1][-1]))
-        self._layouts[rows] = _panels(chunks["forward"]), _panels(chunks["backward"])
+        self._layouts[rows] = forward, backward
         return self._layouts[rows]
 
 
-def _panels(chunks: list) -> Panels:
-    """:class:`Panels` of ``chunks`` ``[(level, first row, input columns, output columns, values
-    (height, inputs + outputs))]``, sorted by level (stable)."""
-    order = np.argsort([c[0] for c in chunks], kind="stable")
-    chunks = [chunks[i] for i in order]
-    reads = np.array([(len(c[2]), len(c[3])) for c in chunks], dtype=np.int64).reshape(-1, 2)
-    height = np.array([c[4].shape[0] for c in chunks], dtype=np.int64)
-    sizes = height * reads.sum(axis=1)
-    return Panels(np.array([c[0] for c in chunks], dtype=np.int64), np.array([c[1] for c in chunks], dtype=np.int64),
-                  height, reads, np.concatenate([[0], np.cumsum(reads.sum(axis=1))[:-1]]),
-                  np.concatenate([[0], np.cumsum(sizes)[:-1]]),
-                  narrow(np.concatenate([np.concatenate([c[2], c[3]]) for c in chunks])),
-                  narrow(np.concatenate([c[4].ravel() for c in chunks])))
+def _starts(counts: np.ndarray) -> np.ndarray:
+    """Where each of ``counts`` consecutive runs starts (an exclusive cumulative sum, int64)."""
+    out = np.zeros(len(counts), dtype=np.int64)
+    np.cumsum(counts[:-1], out=out[1:])
+    return out
+
+
+def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The runs ``starts[i] + arange(counts[i])`` one after another."""
+    counts = np.asarray(counts, dtype=np.int64)
+    return np.repeat(np.asarray(starts, dtype=np.int64) - _starts(counts), counts) + np.arange(int(counts.sum()))
+
+
+def _panels(level, row, height, inputs: tuple, outputs: tuple, places: tuple, base, i0, stride) -> Panels:
+    """:class:`Panels` sorted by level (stable), of per-panel ``level``, first ``row`` and
+    ``height``; ``inputs`` ``(first, count)``: each reads ``count`` input columns from ``first``;
+    ``outputs`` ``(columns, count)``: the output columns, all panels' one after another, and each
+    one's count; ``places`` ``(first, places)``: in its supernode's rows, the place of its input
+    columns (``count`` from ``first``) and of its output columns (one after another). Its row
+    ``i0 + r``'s value of column ``q`` is read at ``base + (i0 + r) stride + place_q``."""
+    (in_first, n_in), (out_col, n_out) = inputs, outputs
+    n_in, n_out = np.asarray(n_in, dtype=np.int64), np.asarray(n_out, dtype=np.int64)
+    columns = n_in + n_out
+    start = _starts(columns)  # (unsorted) each panel's first column, its inputs', then its outputs'
+    col, place = np.empty(int(columns.sum()), dtype=np.int64), np.empty(int(columns.sum()), dtype=np.int64)
+    inside, outside = _ranges(start, n_in), _ranges(start + n_in, n_out)
+    col[inside], place[inside] = _ranges(in_first, n_in), _ranges(places[0], n_in)
+    col[outside], place[outside] = out_col, places[1]
+    order = np.argsort(level, kind="stable")
+    listed = _ranges(start[order], columns[order])
+    col, place, height = col[listed], place[listed], np.asarray(height, dtype=np.int64)[order]
+    col_start = _starts(columns[order])
+    of = np.repeat(order, height)  # each panel row's panel, in order
+    first = base[of] + _ranges(i0[order], height) * stride[of]  # its row's first place
+    val = np.repeat(first, columns[of]) + place[_ranges(np.repeat(col_start, height), columns[of])]
+    return Panels(np.asarray(level, dtype=np.int64)[order], np.asarray(row, dtype=np.int64)[order], height,
+                  np.stack([n_in[order], n_out[order]], axis=1).reshape(-1, 2), col_start,
+                  _starts(height * columns[order]), narrow(col), narrow(val))
 
 
 def narrow(index: np.ndarray) -> np.ndarray:
