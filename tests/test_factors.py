@@ -302,8 +302,8 @@ def test_worker_processes_factorize_as_the_host_does(monkeypatch, ahead, fits):
     pools, placed = [], []
     real, taken = factors.ProcessPoolExecutor, factors._taken
     monkeypatch.setattr(factors, "ProcessPoolExecutor", lambda *a, **k: pools.append(a) or real(*a, **k))
-    monkeypatch.setattr(factors, "_taken", lambda arena, future: placed.append(
-        isinstance(future.result()[0], factors._Placed)) or taken(arena, future))
+    monkeypatch.setattr(factors, "_taken", lambda arena, future, device: placed.append(
+        isinstance(future.result()[0], factors._Placed)) or taken(arena, future, device))
     scenes = [beam(cells=c) for c in (12, 16, 20)]
     here, pre_here = _product(scenes, 1)
     assert not pools and not placed

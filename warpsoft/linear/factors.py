@@ -148,11 +148,12 @@ def _arrays(result: tuple) -> list[np.ndarray]:
 
 
 def _rebuilt(result: tuple, take) -> tuple:
-    """``result`` with each array ``a`` (:func:`_arrays`) replaced by ``take(a)``."""
+    """``result`` with each array ``a`` (:func:`_arrays`) replaced by ``take(a, its field)`` (the
+    order's field: None)."""
     order, programs = result
-    return take(order), tuple(replace(p, **{f.name: take(getattr(p, f.name)) for f in fields(p)
-                                            if isinstance(getattr(p, f.name), (np.ndarray, _Placed))})
-                              for p in programs)
+    return take(order, None), tuple(replace(p, **{f.name: take(getattr(p, f.name), f.name) for f in fields(p)
+                                                  if isinstance(getattr(p, f.name), (np.ndarray, _Placed))})
+                                    for p in programs)
 
 
 def _aligned(nbytes: int) -> int:
@@ -181,7 +182,7 @@ def _factor_in_slot(token: int, slot: int, key, count: int, masses: np.ndarray |
         return result
     at = slot * size
 
-    def put(a: np.ndarray) -> _Placed:
+    def put(a: np.ndarray, _) -> _Placed:
         nonlocal at
         np.frombuffer(arena, a.dtype, a.size, at)[:] = a.reshape(-1)
         placed, at = _Placed(at, a.dtype.str, a.shape), at + _aligned(a.nbytes)
@@ -190,28 +191,40 @@ def _factor_in_slot(token: int, slot: int, key, count: int, masses: np.ndarray |
     return _rebuilt(result, put)
 
 
-def _taken(arena: mmap.mmap, future) -> tuple:
-    """A worker's result (:func:`_factor_in_slot`), its arrays copied out of its slot."""
+def _taken(arena: mmap.mmap, future, device) -> tuple:
+    """A worker's result (:func:`_factor_in_slot`), its arrays copied out of its slot: panels'
+    values and columns straight to ``device`` (where they go: the host never holds them), the rest
+    to the host."""
     result = future.result()
 
-    def take(a):
+    def take(a, field):
         if not isinstance(a, _Placed):
             return a
-        return np.frombuffer(arena, np.dtype(a.dtype), math.prod(a.shape), a.offset).reshape(a.shape).copy()
+        view = np.frombuffer(arena, np.dtype(a.dtype), math.prod(a.shape), a.offset).reshape(a.shape)
+        if field in ("val", "col") and isinstance(result[1][0], Panels):
+            return wp.array(view, dtype=wp.dtype_from_numpy(view.dtype), device=device)
+        return view.copy()
 
     return _rebuilt(result, take)
 
 
-def _stacked(parts: list[np.ndarray], dtype, device, into: wp.array | None = None) -> wp.array:
-    """``parts`` one after another in one array of ``dtype`` on ``device`` (``into``, or a new
-    one), copied part by part: the host never holds them joined (joined,
-    with their tasks, they are the factors' device memory: 16 GB for 4096 Diamonds on the H200)."""
+def _as(array, dtype):
+    """A numpy ``array`` in ``dtype`` (no copy where it is); a Warp array (already the device's) as it is."""
+    return array if isinstance(array, wp.array) else array.astype(dtype, copy=False)
+
+
+def _stacked(parts: list, dtype, device, into: wp.array | None = None) -> wp.array:
+    """``parts`` (numpy arrays, or Warp arrays of ``dtype`` on ``device``) one after another in one
+    array of ``dtype`` on ``device`` (``into``, or a new one), copied part by part: the host never
+    holds them joined (joined, with their tasks, they are the factors' device memory: 16 GB for
+    4096 Diamonds on the H200)."""
     out = wp.empty(sum(len(p) for p in parts), dtype=dtype, device=device) if into is None else into
     at, kind = 0, wp.dtype_to_numpy(dtype)
     for part in parts:
         if len(part):
-            host = wp.array(np.ascontiguousarray(part, dtype=kind), dtype=dtype, device="cpu", copy=False)
-            wp.copy(out, host, dest_offset=at, count=len(part))
+            if not isinstance(part, wp.array):
+                part = wp.array(np.ascontiguousarray(part, dtype=kind), dtype=dtype, device="cpu", copy=False)
+            wp.copy(out, part, dest_offset=at, count=len(part))
         at += len(part)
     return out
 
@@ -468,10 +481,10 @@ class WorldFactors(OwnRefreshes, WorldGroups):
                                                    op.stiffness_scale, self.ordering, rows, kept)))
                     if len(waiting) >= slots:
                         w0, future = waiting.popleft()
-                        yield w0, partial(_taken, arena, future)
+                        yield w0, partial(_taken, arena, future, m.device)
                 while waiting:
                     w0, future = waiting.popleft()
-                    yield w0, partial(_taken, arena, future)
+                    yield w0, partial(_taken, arena, future, m.device)
         finally:
             _INHERITED.pop(token, None)
 
@@ -488,8 +501,7 @@ class WorldFactors(OwnRefreshes, WorldGroups):
             if first:
                 self.orders.append(order)
             if self.layout == "panels":  # (held till the lay-out; made in these dtypes, so no copy)
-                program = tuple(replace(p, val=p.val.astype(npd, copy=False), col=p.col.astype(index, copy=False))
-                                for p in program)
+                program = tuple(replace(p, val=_as(p.val, npd), col=_as(p.col, index)) for p in program)
             programs.append(program)
             if self.progress is not None:
                 self.progress(b + 1, len(self.first_world))
