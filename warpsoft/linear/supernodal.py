@@ -149,31 +149,42 @@ class Supernodal:
         last = self.end - 1
         sparent = np.where(parent[last] >= 0, self.of[np.maximum(parent[last], 0)], -1)
         ns = len(self.first)
-        self.forward_level = np.zeros(ns, dtype=np.int64)
+        up, forward, backward = sparent.tolist(), [0] * ns, [0] * ns  # (Python lists: a scalar loop)
         for s in range(ns):  # children come before parents: a level one above the highest child's
-            p = sparent[s]
+            p = up[s]
             if p >= 0:
-                self.forward_level[p] = max(self.forward_level[p], self.forward_level[s] + 1)
-        self.backward_level = np.zeros(ns, dtype=np.int64)
+                forward[p] = max(forward[p], forward[s] + 1)
         for s in range(ns - 1, -1, -1):  # parents come after children: a level one below the parent's
-            if sparent[s] >= 0:
-                self.backward_level[s] = self.backward_level[sparent[s]] + 1
+            if up[s] >= 0:
+                backward[s] = backward[up[s]] + 1
+        self.forward_level = np.array(forward, dtype=np.int64)
+        self.backward_level = np.array(backward, dtype=np.int64)
         # the rows left of each supernode (its G: the entries of its rows in earlier columns), read
         # by rows: each entry's place in L's (column-ordered) data, so that G is gathered from it
         place = sp.csc_matrix((np.arange(1, len(self.indices) + 1), self.indices, self.indptr), shape=(n, n)).tocsr()
         place.sort_indices()
-        self.left = []  # per supernode: J, the union of G's patterns down its rows, G's places in L and in (w, |J|)
-        for a, b in zip(self.first, self.end, strict=True):
-            lo, hi = place.indptr[a], place.indptr[b]
-            row = np.repeat(np.arange(b - a), np.diff(place.indptr[a:b + 1]))
-            col, src = place.indices[lo:hi], place.data[lo:hi] - 1
-            left = col < a
-            row, col, src = row[left], col[left], src[left]
-            J = np.unique(col)
-            seen = np.zeros((b - a, len(J)), dtype=bool)
-            dest = row * len(J) + np.searchsorted(J, col)
-            seen.flat[dest] = True
-            self.left.append((J, np.logical_or.accumulate(seen, axis=0), narrow(src), narrow(dest)))
+        row = np.repeat(np.arange(n), np.diff(place.indptr))
+        s = self.of[row]
+        left = place.indices < self.first[s]
+        row, col, s = row[left], place.indices[left], s[left]
+        src = place.data[left] - 1
+        within = row - self.first[s]  # the entry's row in its supernode
+        # J per supernode: its distinct columns, in order; an entry's first occurrence is its column's
+        # top row (the entries come by rows), from which the column is in the rows' pattern
+        key, top, index = np.unique(s * n + col, return_index=True, return_inverse=True)
+        per = np.bincount(key // n, minlength=ns)  # |J| a supernode
+        dest = within * per[s] + (index - _starts(per)[s])
+        cuts = np.cumsum(per)[:-1]
+        entries = np.cumsum(np.bincount(s, minlength=ns))[:-1]
+        width = self.end - self.first
+        steps = np.arange(width.max(initial=0))[:, None]
+        # per supernode: J, its rows' patterns in J, G's places in L and in (w, |J|)
+        self.left = [(J, steps[:w] >= t, g, d)
+                     for J, t, w, g, d in zip(np.split((key % n).astype(place.indices.dtype), cuts),
+                                              np.split(within[top], cuts), width.tolist(),
+                                              np.split(narrow(src), entries), np.split(narrow(dest), entries),
+                                              strict=True)]
+        self._below = None  # per supernode: R and the places of L_RS^T in L's data (made at the first solves)
         self._layouts = {}  # rows -> the panels, each value its place in the supernode rows (_panel_layout)
 
     @property
@@ -200,16 +211,18 @@ class Supernodal:
             T[:, i, j] = data[self.indptr[self.first[group][:, None] + j] + (i - j)]
             for s, inverse in zip(group, np.linalg.inv(T), strict=True):
                 inverses[s] = inverse
-        for s, (a, b) in enumerate(zip(self.first, self.end, strict=True)):
-            w = b - a
+        if self._below is None:  # L_RS^T (w, |R|): the rows R below each triangle, after T's part of its columns
+            self._below = []
+            for a, b in zip(self.first.tolist(), self.end.tolist(), strict=True):
+                w, start = b - a, self.indptr[a]
+                R = self.indices[start + w:self.indptr[a + 1]]
+                self._below.append((R, self.indptr[a:b][:, None] + (w - np.arange(w))[:, None] + np.arange(len(R))))
+        for s, (a, b, (R, below), (J, pattern, src, dest)) in enumerate(zip(
+                self.first.tolist(), self.end.tolist(), self._below, self.left, strict=True)):
             Tinv = inverses[s]
-            # L_RS^T (w, |R|): the rows R below the triangle, shared by its columns, after T's part
-            R = self.indices[self.indptr[a] + w:self.indptr[a + 1]]
-            below = data[self.indptr[a:b][:, None] + (w - np.arange(w))[:, None] + np.arange(len(R))]
-            J, pattern, src, dest = self.left[s]
-            G = np.zeros((w, len(J)))
+            G = np.zeros((b - a, len(J)))
             G.flat[dest] = data[src]
-            yield s, a, b, Tinv, J, pattern, -(Tinv @ G), R, -(Tinv.T @ below)
+            yield s, a, b, Tinv, J, pattern, -(Tinv @ G), R, -(Tinv.T @ data[below])
 
     def programs(self, L: sp.csc_matrix) -> tuple[Program, Program]:
         """The forward and backward programs of ``L`` (its pattern the one analysed): a task a row."""
