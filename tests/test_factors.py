@@ -514,7 +514,7 @@ def test_a_block_analysed_ahead_refactorizes_as_one_analysed_at_its_first():
     pre.op.elastic.blocks(pre.op.rot, blocks, [(e0, e1)])  # the world's state three steps on
     (_, forward), (_, backward) = info.values  # (this block alone in a fresh arena: its element blocks, its values)
     values = ((8 * info.elements, forward), (8 * info.elements + 8 * -(-forward // 2), backward))
-    local = refactor.Block(info.pattern, info.order, info.masses, info.elements, values)
+    local = refactor.Block(info.patterns, info.mesh, info.order, info.masses, info.elements, values)
     panels, supernodes = [], []
     for ahead in (True, False):
         arena, cache = mmap.mmap(-1, values[1][0] + 4 * backward), {}

@@ -37,6 +37,7 @@ import mmap
 import multiprocessing
 import os
 from collections import deque
+from collections.abc import Mapping
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import fields, replace
 from functools import partial
@@ -57,7 +58,7 @@ from .blocks import WorldGroups
 from .operator import SystemOperator
 from .own_refresh import OwnRefreshes
 from .pattern import Pattern, Sparsity
-from .refactor import lower_system
+from .refactor import lock_pages, lower_system, unlock_pages
 from .supernodal import Panels, Program, Supernodal, sliced
 
 LANES = 32  # threads a row in the levels of long rows, on CUDA
@@ -90,7 +91,7 @@ PANEL_SPREAD = (8.0, 1.0)
 # panel's walk, and the forward solve's last levels read up to 2,208 columns a panel
 WIDE_FROM, WIDE_LANES = 256.0, 128
 # a first factorization's state its forked workers inherit (a fork keeps a module's globals; nothing
-# pickled): by its token, (the shared memory of its slots, a slot's bytes, mesh -> its pattern)
+# pickled): by its token, (the shared memory of its slots, a slot's bytes, the meshes' MeshPatterns)
 _INHERITED: dict[int, tuple] = {}
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
 POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07-0.15 s on the CPU VM)
@@ -170,7 +171,7 @@ def _factor_in_slot(token: int, slot: int, key, count: int, masses: np.ndarray |
                     ordering: str, panel_rows: int, kept: tuple) -> tuple:
     """In a forked worker: :func:`factor_programs` of the system whose ``count`` element-block
     numbers (float64, unscaled) the parent put in ``slot`` of the shared memory it left in
-    :data:`_INHERITED` under ``token`` (with the meshes' patterns, ``key`` this one's), times
+    :data:`_INHERITED` under ``token`` (with the meshes' :class:`MeshPatterns`, ``key`` this one's), times
     ``stiffness_scale``, with ``masses`` (scaled, or None) on its diagonal. Its arrays go back in
     the same slot (:class:`_Placed`), or pickled where they do not fit."""
     arena, size, patterns = _INHERITED[token]
@@ -241,6 +242,31 @@ def _by_level(levels: np.ndarray, per_world: np.ndarray, kind: list, device) -> 
     listed = [(int(f), int(c), k, int(most)) for f, c, k, most in zip(firsts, count, kind, per_world.max(axis=1),
                                                                        strict=True) if c]
     return order, listed, wp.array(spans.astype(np.int32), dtype=wp.vec2i, device=device)
+
+
+class MeshPatterns(Mapping):
+    """Mesh -> the :class:`~warpsoft.linear.pattern.Pattern` of its system's lower triangle over its
+    free DOFs, each made at its first look, in the process that looks (a forked worker makes its
+    blocks' own) and kept there. ``meshes``: mesh -> ``(local, nodes, free)``: its elements' node
+    ids ``(elements, k)``, its nodes, its free DOFs ``3 i + a``."""
+
+    def __init__(self, meshes: dict):
+        self._meshes, self._made = meshes, {}
+
+    def __getitem__(self, key) -> Pattern:
+        made = self._made.get(key)
+        if made is None:
+            local, nodes, dofs = self._meshes[key]
+            free = np.zeros(3 * nodes, dtype=bool)
+            free[dofs] = True
+            made = self._made[key] = Pattern.of_blocks(block_pairs(local), free)
+        return made
+
+    def __iter__(self):
+        return iter(self._meshes)
+
+    def __len__(self) -> int:
+        return len(self._meshes)
 
 
 class WorldFactors(OwnRefreshes, WorldGroups):
@@ -323,19 +349,13 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         first = {}  # mesh -> its first world
         for w, key in enumerate(self.mesh_of):
             first.setdefault(key, w)
-
-        def pattern(key) -> Pattern:  # the lower triangle of the mesh's system over its free DOFs
-            local, nodes = self.meshes[key]
-            free = np.zeros(3 * nodes, dtype=bool)
-            free[self.local_free[first[key]]] = True
-            return Pattern.of_blocks(block_pairs(local), free)
-
-        # mesh by mesh in threads: numpy's sorts and gathers run outside the GIL (256 different
-        # Diamonds on the 2-core VM: the simulator's construction 2.87 -> 2.38 s with two)
-        meshes = list(self.meshes)
-        self.patterns = dict(zip(meshes, in_threads(pattern, meshes), strict=True))  # mesh -> its pattern
+        # mesh -> the lower triangle of its system over its free DOFs, made where first looked at: the
+        # first factorization's workers make their blocks' (1024 different Diamonds: 3.7 s of the
+        # H200 host's simulator construction, in threads, when made here)
+        self.patterns = MeshPatterns({key: (local, nodes, self.local_free[first[key]])
+                                      for key, (local, nodes) in self.meshes.items()})
         # an entry's column is a place of its factor, which has a place per free DOF
-        places = max((p.size for p in self.patterns.values()), default=0)
+        places = max((len(self.local_free[w]) for w in first.values()), default=0)
         self.index_dtype = wp.uint16 if places <= NARROW_PLACES else wp.int32
         self.orders = []  # per block, the factor's ordering (the DOF at each place), made at the first refresh
         self.workers = WORKERS
@@ -429,6 +449,9 @@ class WorldFactors(OwnRefreshes, WorldGroups):
             if workers > 1 and len(self.first_world) >= POOL_FROM and "fork" in multiprocessing.get_all_start_methods():
                 self._take(m, first, self._in_workers(blocks, workers, rows, kept))
             else:
+                if first:  # (the patterns side by side in threads: numpy's sorts and gathers run outside the GIL)
+                    in_threads(self.patterns.__getitem__, list(dict.fromkeys(self.mesh_of[w]
+                                                                             for w in self.first_world)))
                 self._take(m, first, ((w, partial(factor_programs, self.patterns[self.mesh_of[w]].sparsity(),
                                                   self._system(blocks, w), self.ordering, rows, kept))
                                       for w in self.first_world))
@@ -462,11 +485,16 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         slots, size = AHEAD * workers, 8 * max(count.values())
         arena = mmap.mmap(-1, slots * size)
         token = id(arena)
-        _INHERITED[token] = (arena, size, {self.mesh_of[w]: self.patterns[self.mesh_of[w]] for w in count})
-        sync = m.device.is_cuda
+        _INHERITED[token] = (arena, size, self.patterns)
+        sync, locked = m.device.is_cuda, []
         try:
             with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
                                      initializer=bind_to_parent, initargs=(os.getpid(),)) as pool:
+                if sync:  # the slots page-locked once the workers forked (CUDA keeps such pages out of
+                    # forked children): the copies to and from the device then run at the bus's speed
+                    # (pageable, 1024 Diamonds' element blocks and programs took about 4.6 s of the host)
+                    pool.submit(int).result()
+                    locked = lock_pages(m.device, [arena])
                 waiting = deque()
                 for b, w in enumerate(self.first_world):
                     w, slot = int(w), b % slots
@@ -487,6 +515,9 @@ class WorldFactors(OwnRefreshes, WorldGroups):
                     yield w0, partial(_taken, arena, future, m.device)
         finally:
             _INHERITED.pop(token, None)
+            if locked:  # (the device done with the slots first)
+                wp.synchronize_device(m.device)
+                unlock_pages(m.device, locked, [arena])
 
     def _take(self, m, first: bool, results) -> None:
         """Lay out the blocks' programs, ``results`` (an iterable of ``(world, call)``) in block
@@ -534,7 +565,7 @@ class WorldFactors(OwnRefreshes, WorldGroups):
             place = np.full(3 * m.num_nodes, -1, dtype=np.int32)
             for w in range(m.num_worlds):
                 b, start = int(self.block_of[w]), 3 * int(m.world_node_start[w])
-                dof = self.patterns[self.mesh_of[w]].free[self.orders[b]]  # the world's DOF at each place
+                dof = self.local_free[w][self.orders[b]]  # the world's DOF at each place
                 place[start + dof] = start + np.arange(len(dof))
             self.place = wp.array(place, dtype=wp.int32, device=d)
         if self.layout == "panels":

@@ -148,7 +148,7 @@ class OwnRefreshes:
         itemsize = 8 if self.dtype == wp.float64 else 4
         places, slots, arenas = Refactorizer.layout(elements, values, workers, itemsize)
         has_mass = getattr(m, "mass_np", None) is not None
-        blocks = {b: Block(self.patterns[self.mesh_of[w]], self.orders[b],
+        blocks = {b: Block(self.patterns, self.mesh_of[w], self.orders[b],
                            m.mass_np[m.world_nodes(w)].copy() if has_mass else None, elements[b], places[b])
                   for b, w in worlds.items()}
         npd = np.float64 if itemsize == 8 else np.float32

@@ -53,6 +53,7 @@ import os
 import time
 import weakref
 from collections import deque
+from collections.abc import Hashable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -93,17 +94,24 @@ def lower_system(pattern: Pattern, entries: np.ndarray, masses: np.ndarray | Non
 
 @dataclass
 class Block:
-    """What a block's worker knows of it: its world's ``pattern``, the factor's ``order`` (the DOF
-    at each place), the world's nodes' ``masses`` ``(nodes,)`` kg (None without mass), its
-    ``elements`` (the numbers of its element blocks, float64) and its ``values``' places in the
-    shared memory, ``((offset, numbers), (offset, numbers))`` (bytes; numbers in the factors'
-    precision) of its forward and backward panels' values."""
+    """What a block's worker knows of it: its world's mesh (``patterns[mesh]``, its
+    :attr:`pattern`, made where first looked at), the factor's ``order`` (the DOF at each place),
+    the world's nodes' ``masses`` ``(nodes,)`` kg (None without mass), its ``elements`` (the numbers
+    of its element blocks, float64) and its ``values``' places in the shared memory, ``((offset,
+    numbers), (offset, numbers))`` (bytes; numbers in the factors' precision) of its forward and
+    backward panels' values."""
 
-    pattern: Pattern
+    patterns: Mapping
+    mesh: Hashable
     order: np.ndarray
     masses: np.ndarray | None
     elements: int
     values: tuple[tuple[int, int], tuple[int, int]]
+
+    @property
+    def pattern(self) -> Pattern:
+        """The lower triangle of the world's system over its free DOFs."""
+        return self.patterns[self.mesh]
 
 
 @dataclass
@@ -294,7 +302,7 @@ class Refactorizer:
             self._procs.append((proc, parent))
         device = wp.get_device(device)
         # (after the fork: CUDA may keep page-locked memory out of forked children)
-        self._locked = _page_lock(device, self._arenas)
+        self._locked = lock_pages(device, self._arenas)
         self.page_locked = bool(self._locked) and len(self._locked) == len(self._arenas)
         self._side = wp.Stream(device) if device.is_cuda else None  # the copies to the workers, and back
         self._staging, self._staged = None, None  # values on their way in (CUDA), and the event they left it at
@@ -502,7 +510,7 @@ class Refactorizer:
         self._finalizer()
 
 
-def _page_lock(device, arenas: list) -> list[int]:
+def lock_pages(device, arenas: list) -> list[int]:
     """Page-lock each arena for ``device``'s copies (``cuMemHostRegister``: a copy from the device
     into it then runs beside other work instead of through the driver's staging); returns the
     addresses locked, none where the device is not CUDA or the driver refuses (the copies are then
@@ -513,7 +521,7 @@ def _page_lock(device, arenas: list) -> list[int]:
         driver = ctypes.CDLL("libcuda.so.1")
     except OSError:
         return []
-    _unlock(device, [], [])  # (what earlier refactorizers left locked)
+    unlock_pages(device, [], [])  # (what earlier refactorizers left locked)
     locked = []
     with wp.ScopedDevice(device):  # (its context current for the driver's call)
         for arena in arenas:
@@ -539,11 +547,11 @@ def _shut_down(procs: list, locked: list[int], device, arenas: list) -> None:
         conn.close()
     procs.clear()
     if locked:
-        _unlock(device, list(locked), arenas)
+        unlock_pages(device, list(locked), arenas)
         locked.clear()
 
 
-def _unlock(device, addresses: list[int], arenas: list) -> None:
+def unlock_pages(device, addresses: list[int], arenas: list) -> None:
     """Unlock the pages at ``addresses`` (``cuMemHostUnregister``), and those left locked before;
     while ``device`` captures a graph, keep them all for later instead: the driver's call would end
     the capture in error (a refactorizer is often shut down by the garbage collector, at any point of
