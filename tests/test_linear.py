@@ -151,6 +151,37 @@ def test_the_assembled_operator_applies_every_element_model_as_the_matrix_free_o
     assert np.abs(values - transposed).max() < 1e-12 * np.abs(values).max()
 
 
+def test_the_assembled_structure_found_world_group_by_group_is_one_groups(monkeypatch):
+    """The slots found in groups of whole worlds side by side (nine beams of different lengths in
+    up to four groups, in threads) are those found in one group: the same places, columns, chunks,
+    starts and element blocks in the same order; and the product is the element kernels'."""
+    from warpsoft import processes
+    from warpsoft.linear import operator
+
+    from .test_blocks import beam
+
+    sim = ws.Simulator(ws.finalize([beam(cells=c) for c in range(4, 13)]), solver="direct")
+    monkeypatch.setattr(processes, "THREADED_FROM", 1)
+    made = {}
+    for cores in (1, 4):
+        monkeypatch.setattr(operator, "usable_cores", lambda c=cores: c)
+        monkeypatch.setattr(processes, "usable_cores", lambda c=cores: c)
+        assert len(operator._world_groups(sim.model, sim.elastic)) == cores
+        made[cores] = AssembledBlocks(sim.model, sim.elastic, chunk_rows=4)
+    one, four = made[1], made[4]
+    assert one.filled == four.filled and np.array_equal(one.place, four.place)
+    for name in ("chunk_start", "chunk_slots", "column", "slot_start", "contributions"):
+        assert np.array_equal(getattr(one, name).numpy(), getattr(four, name).numpy()), name
+    x = wp.array(np.random.default_rng(4).standard_normal((2, sim.model.num_nodes, 3)), dtype=wp.vec3d)
+    sim.rot.assign(np.tile(np.eye(3), (sim.model.num_elements, 1, 1)))  # (at rest)
+    four.refresh(sim.rot)
+    assembled, free = wp.zeros_like(x), wp.zeros_like(x)
+    four.apply(x, assembled, 0.0, 1.0)
+    sim.operator.stiffness_scale, sim.operator.mass_scale = 1.0, 0.0
+    sim.operator.apply(x, free)
+    assert np.abs(assembled.numpy() - free.numpy()).max() < 1e-12 * np.abs(free.numpy()).max()
+
+
 def test_the_fused_refresh_sums_the_blocks_the_element_model_writes():
     """Corotational blocks formed in each slot's thread (CUDA's way) sum to what the element
     blocks written first and gathered give (the CPU's), on two bent beams of different stiffness."""

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import warp as wp
 
@@ -12,7 +14,7 @@ from warpsoft.kernels.linear import cg as linalg
 from ..elastic import element_model
 from ..launch import launch
 from ..model import Model
-from ..processes import stable_order
+from ..processes import in_threads, usable_cores
 
 OPERATORS = ("auto", "matrix_free", "assembled")
 # "auto" assembles the blocks on CUDA from this many elements (a batch of designs): there the
@@ -97,6 +99,43 @@ def chunked(rows: np.ndarray, cols: np.ndarray, n: int,
     return place, column.astype(np.int32), chunk_start.astype(np.int32), chunk_slots.astype(np.int32)
 
 
+def _world_groups(model: Model, elastic) -> list[list[tuple[int, np.ndarray]]]:
+    """The element blocks cut into groups of whole worlds, about one a core: each a list of
+    ``(first block, elements)``, its elements' node ids ``(count, k)`` and the index of their first
+    block among all. With several element models, one group of them all (their elements come
+    model after model, not world after world)."""
+    if len(elastic.groups) != 1:
+        parts, b0 = [], 0
+        for g in elastic.groups:
+            parts.append((b0, g.group.elems_np))
+            b0 += g.group.elems_np.shape[1] ** 2 * g.group.count
+        return [parts]
+    elems = elastic.groups[0].group.elems_np
+    k2 = elems.shape[1] ** 2
+    starts = model.world_elem_start.astype(np.int64)
+    wanted = np.linspace(0, len(elems), usable_cores() + 1)[1:-1]  # (cut at the next world's start)
+    cuts = np.unique(np.concatenate([[0], starts[np.minimum(np.searchsorted(starts, wanted), len(starts) - 1)],
+                                     [len(elems)]]))
+    return [[(k2 * int(a), elems[a:b])] for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a]
+
+
+def _slots_of(parts: list[tuple[int, np.ndarray]], n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One group of worlds (:func:`_world_groups`): its slots' keys ``row n + column`` in order,
+    each slot's count of element blocks, and those blocks (their index among all, int32) slot by
+    slot, each slot's in their own order (a stable sort). Block ``k a + c`` of an element couples its
+    nodes ``a`` and ``c`` (:func:`~warpsoft.elastic.block_pairs`)."""
+    keys, index = [], []
+    for b0, elems in parts:
+        e = np.asarray(elems, dtype=np.int64)
+        keys.append((e[:, :, None] * n + e[:, None, :]).reshape(-1))
+        index.append(np.arange(b0, b0 + keys[-1].size, dtype=np.int32))
+    key, index = (np.concatenate(keys), np.concatenate(index)) if len(keys) > 1 else (keys[0], index[0])
+    order = np.argsort(key, kind="stable")
+    ordered = key[order]
+    first = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1]]))
+    return ordered[first], np.diff(np.append(first, len(key))), index[order]
+
+
 class AssembledBlocks:
     """``K`` as 3x3 blocks (N/m) by node rows, both triangles, in chunks of ``chunk_rows`` rows
     (sliced ELLPACK: ``kernels/linear/assembled.py``; :data:`CHUNK_ROWS` on CUDA, 1 on the CPU):
@@ -117,15 +156,15 @@ class AssembledBlocks:
         self.model, self.elastic = model, elastic
         n, d = model.num_nodes, model.device
         self.chunk_rows = int(chunk_rows or (CHUNK_ROWS if d.is_cuda else 1))
-        pairs = elastic.block_nodes()  # (element blocks, 2): the nodes each element block couples
-        if len(pairs) >= 2 ** 31:
-            raise ValueError(f"AssembledBlocks: {len(pairs)} element blocks pass the 2^31 a Warp index holds; "
+        blocks = elastic.num_blocks
+        if blocks >= 2 ** 31:
+            raise ValueError(f"AssembledBlocks: {blocks} element blocks pass the 2^31 a Warp index holds; "
                              "step fewer designs at a time, or use operator='matrix_free'")
-        key = pairs[:, 0] * n + pairs[:, 1]
-        order = stable_order(key)  # the element blocks grouped by slot, rows in order
-        ordered = key[order]
-        first = np.flatnonzero(np.concatenate([[True], ordered[1:] != ordered[:-1]]))  # each slot's first
-        slots = ordered[first]
+        # each world group's slots (node pairs) in order, their element blocks' counts, and those
+        # blocks in slot order, side by side in threads (1024 Diamonds, 65 M element blocks: one
+        # group of all of them took 5.9 s of the H200 host's simulator construction, in cProfile)
+        found = in_threads(partial(_slots_of, n=n), _world_groups(model, elastic))
+        slots, runs = np.concatenate([f[0] for f in found]), np.concatenate([f[1] for f in found])
         self.filled = len(slots)  # the slots that hold a block (the padding aside)
         place, column, chunk_start, chunk_slots = chunked(slots // n, slots % n, n, self.chunk_rows)
         self.num_slots = len(column)
@@ -138,21 +177,28 @@ class AssembledBlocks:
         self.place = place.astype(np.int32)  # (filled,) where each slot of the rows in order lies, host (by_rows)
         # each place's element blocks: a filled slot's, in the order of the places; none for the padding
         count = np.zeros(self.num_slots, dtype=np.int64)
-        count[place] = np.diff(np.append(first, len(key)))
-        by_place = stable_order(place)  # the filled slots in the order of their places
-        starts = np.repeat(first[by_place] - np.concatenate([[0], np.cumsum(count[place][by_place])[:-1]]),
-                           count[place][by_place])
-        self.slot_start = wp.array(np.concatenate([[0], np.cumsum(count)]).astype(np.int32), device=d)
-        self.contributions = wp.array(order[starts + np.arange(len(key))].astype(np.int32), device=d)
+        count[place] = runs
+        slot_start = np.concatenate([[0], np.cumsum(count)])
+        contributions = np.empty(blocks, dtype=np.int32)
+        at = np.cumsum([0] + [len(f[0]) for f in found])
+
+        def scatter(g: int) -> None:  # a group's blocks to their places' lists
+            mine, order = runs[at[g]:at[g + 1]], found[g][2]
+            head = slot_start[place[at[g]:at[g + 1]]] - (np.cumsum(mine) - mine)
+            contributions[np.repeat(head, mine) + np.arange(len(order))] = order
+
+        in_threads(scatter, list(range(len(found))))
+        self.slot_start = wp.array(slot_start.astype(np.int32), device=d)
+        self.contributions = wp.array(contributions, device=d)
         self.values = wp.zeros(self.num_slots, dtype=wp.mat33d, device=d)
         self.no_mass = wp.zeros(0, dtype=wp.float64, device=d)
         groups = elastic.groups
         can = len(groups) == 1 and hasattr(groups[0].kernels, "rotated_gradients")
         self.fused = can and (d.is_cuda if fused is None else bool(fused))
-        self.element_blocks = None if self.fused else wp.zeros(len(key), dtype=wp.mat33d, device=d)
+        self.element_blocks = None if self.fused else wp.zeros(blocks, dtype=wp.mat33d, device=d)
         # per element block: its index (4 bytes) and a 16th of the element's rotated gradients and
         # moduli (112 bytes) when fused, else the block itself too (72 bytes)
-        self.memory_bytes = (11 if self.fused else 76) * len(key) + 80 * self.num_slots + 8 * len(chunk_start)
+        self.memory_bytes = (11 if self.fused else 76) * blocks + 80 * self.num_slots + 8 * len(chunk_start)
 
     def by_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The filled slots read back, rows in order: ``(rows, columns, values)``, ``(filled,)`` each
