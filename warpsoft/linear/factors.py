@@ -94,9 +94,9 @@ WIDE_FROM, WIDE_LANES = 256.0, 128
 # pickled): by its token, (the shared memory of its slots, a slot's bytes, the meshes' MeshPatterns)
 _INHERITED: dict[int, tuple] = {}
 WORKERS = None  # processes that factorize the blocks (None: one a core this process may run on; where processes fork)
-POOL_FROM = 32  # blocks from which they do (a Diamond's block: 0.07-0.15 s on the CPU VM)
-# the blocks sent ahead to them, per worker, each in a slot of shared memory (the largest world's element
-# blocks: 4.6-6.9 MB for a Diamond): the rest wait, their results taken in order as they come
+POOL_FROM = 32  # blocks from which they do
+# the blocks sent ahead to them, per worker, each in a slot of shared memory (the size of the largest
+# world's element blocks): the rest wait, their results taken in order as they come
 AHEAD = 4
 # a world's own refresh (panels): its block is factorized anew at its state, between steps, when its CG
 # needed more than WORLD_RATIO times the iterations of its first solve after its block's last
@@ -350,8 +350,7 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         for w, key in enumerate(self.mesh_of):
             first.setdefault(key, w)
         # mesh -> the lower triangle of its system over its free DOFs, made where first looked at: the
-        # first factorization's workers make their blocks' (1024 different Diamonds: 3.7 s of the
-        # H200 host's simulator construction, in threads, when made here)
+        # first factorization's workers make their blocks' (docs/performance.md)
         self.patterns = MeshPatterns({key: (local, nodes, self.local_free[first[key]])
                                       for key, (local, nodes) in self.meshes.items()})
         # an entry's column is a place of its factor, which has a place per free DOF
@@ -473,12 +472,11 @@ class WorldFactors(OwnRefreshes, WorldGroups):
         """Each block's ``(world, call)`` in order (:meth:`_take`), factorized by ``workers`` forked
         processes. A block's element blocks go to its worker, and its programs come back, through a
         slot of memory they share, :data:`AHEAD` slots a worker: nothing big crosses a pipe, and the
-        systems are summed in the workers (1024 Diamonds sent as pickled systems and programs: the
-        first step's host spent about 8 s in pipes and 6 s making the systems, H200 machine). A
-        block's slot is filled once the block :data:`AHEAD` times the workers before it is taken.
-        The workers run CHOLMOD, METIS and numpy on their slots, never Warp or CUDA (forked on
-        Linux: a spawned one would first run the user's script again, up to here, wherever it lacks
-        the ``if __name__ == "__main__"`` guard)."""
+        systems are summed in the workers (docs/performance.md). A block's slot is filled once the
+        block :data:`AHEAD` times the workers before it is taken. The workers run CHOLMOD, METIS
+        and numpy on their slots, never Warp or CUDA (forked on Linux: a spawned one would first run
+        the user's script again, up to here, wherever it lacks the ``if __name__ == "__main__"``
+        guard)."""
         m, op = self.op.model, self.op
         starts = m.world_elem_start
         count = {int(w): 144 * int(starts[w + 1] - starts[w]) for w in self.first_world}  # float64 numbers
@@ -492,7 +490,6 @@ class WorldFactors(OwnRefreshes, WorldGroups):
                                      initializer=bind_to_parent, initargs=(os.getpid(),)) as pool:
                 if sync:  # the slots page-locked once the workers forked (CUDA keeps such pages out of
                     # forked children): the copies to and from the device then run at the bus's speed
-                    # (pageable, 1024 Diamonds' element blocks and programs took about 4.6 s of the host)
                     pool.submit(int).result()
                     locked = lock_pages(m.device, [arena])
                 waiting = deque()

@@ -161,8 +161,7 @@ class AssembledBlocks:
             raise ValueError(f"AssembledBlocks: {blocks} element blocks pass the 2^31 a Warp index holds; "
                              "step fewer designs at a time, or use operator='matrix_free'")
         # each world group's slots (node pairs) in order, their element blocks' counts, and those
-        # blocks in slot order, side by side in threads (1024 Diamonds, 65 M element blocks: one
-        # group of all of them took 5.9 s of the H200 host's simulator construction, in cProfile)
+        # blocks in slot order, side by side in threads (a batch's tens of millions of element blocks)
         found = in_threads(partial(_slots_of, n=n), _world_groups(model, elastic))
         slots, runs = np.concatenate([f[0] for f in found]), np.concatenate([f[1] for f in found])
         self.filled = len(slots)  # the slots that hold a block (the padding aside)

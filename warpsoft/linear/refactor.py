@@ -30,9 +30,9 @@ Each block has its worker (its index modulo the workers) and its values' place i
 shared memory; the element blocks come through :data:`SLOTS` slots a worker (each with its mark),
 taken in turn, a job's slot waiting for the worker to answer the job before in it (its slot's element
 blocks then read). All is laid out when the workers are forked (after a header: the blocks the
-worker analysed ahead): they inherit each block's pattern, ordering and masses, and send back only a
-status. (A place for every block's element blocks, as before, made 1024 Diamonds' shared memory 6.2 GB,
-5 s of page locking on the H200's host; their values take 1.6 GB.) A worker
+worker analysed ahead): they inherit each block's mesh, ordering and masses, and send back only a
+status. (Slots, not a place for every block's element blocks: the page-locked memory is mostly the
+values'.) A worker
 analyses its blocks' supernodes while it has nothing to do (:func:`warm`, on a made-up matrix of
 the pattern: the supernodes depend on the pattern alone), so that a block's first refactorization
 costs what the later ones do. On CUDA the shared memory is page-locked once the workers are
