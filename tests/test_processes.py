@@ -87,9 +87,9 @@ def test_workers_end_when_their_parent_is_killed(parent):
 
 
 def test_the_threaded_stable_sort_is_numpys(monkeypatch):
-    """The assembly's sort of element-block keys, cut into pieces sorted side by side, gives numpy's
-    stable argsort: keys world by world with ties (cut between worlds), keys in no order (one
-    sort), and keys all equal."""
+    """The sort of a batch's node ids (the node-element incidence's), cut into pieces sorted side
+    by side, gives numpy's stable argsort: keys world by world with ties (cut between worlds), keys
+    in no order (one sort), and keys all equal."""
     monkeypatch.setattr(processes, "SORT_PIECE", 1000)
     monkeypatch.setattr(processes, "usable_cores", lambda: 4)
     rng = np.random.default_rng(3)

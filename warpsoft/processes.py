@@ -81,8 +81,8 @@ SORT_PIECE = 1 << 20  # keys per thread in stable_order (below two pieces: one s
 
 def stable_order(key: np.ndarray) -> np.ndarray:
     """``np.argsort(key, kind="stable")`` for a ``(n,)`` integer ``key``, sorted in pieces, one
-    thread each, cut where every key before the cut is at or below every key after it (the element
-    blocks of a batch come world by world, each world's nodes after the last one's)."""
+    thread each, cut where every key before the cut is at or below every key after it (a batch's
+    node ids come world by world, each world's nodes after the last one's)."""
     pieces = min(-(-len(key) // SORT_PIECE), usable_cores())
     if pieces < 2:
         return np.argsort(key, kind="stable")
