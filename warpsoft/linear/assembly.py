@@ -85,7 +85,7 @@ class Assembly:
             mask = np.ascontiguousarray(free[3 * n0:3 * n1])
             key = (n1 - n0, hashlib.sha1(b"".join(e.tobytes() + b"|" for e in local) + mask.tobytes()).hexdigest())
             if key not in shared:
-                shared[key] = _element_pattern(local, mask)
+                shared[key] = element_pattern(local, mask)
             self.patterns.append(shared[key])
         self.value_start = np.cumsum([0] + [p.nnz for p in self.patterns])
         self.nnz = int(self.value_start[-1])
@@ -191,7 +191,7 @@ class Assembly:
         return (lower + lower.T - sp.diags(lower.diagonal())).tocsc()
 
 
-def _element_pattern(local: list[np.ndarray], free: np.ndarray) -> Pattern:
+def element_pattern(local: list[np.ndarray], free: np.ndarray) -> Pattern:
     """The :class:`Pattern` of one world's element blocks: ``local`` per element group its elements
     ``(count, k)`` (node ids from the world's first), their blocks as :meth:`Elements.blocks` forms
     them; ``free`` ``(3 nodes,)`` bool."""

@@ -49,11 +49,10 @@ from threadpoolctl import threadpool_limits
 
 from warpsoft.kernels.linear import factors as kernels
 
-from ..elastic import block_pairs
 from ..errors import SceneError
 from ..launch import launch
 from ..processes import bind_to_parent, in_threads, release_freed, usable_cores
-from .assembly import ORDERINGS, CholmodFactor
+from .assembly import ORDERINGS, CholmodFactor, element_pattern
 from .blocks import WorldGroups
 from .operator import SystemOperator
 from .own_refresh import OwnRefreshes
@@ -217,8 +216,7 @@ def _as(array, dtype):
 def _stacked(parts: list, dtype, device, into: wp.array | None = None) -> wp.array:
     """``parts`` (numpy arrays, or Warp arrays of ``dtype`` on ``device``) one after another in one
     array of ``dtype`` on ``device`` (``into``, or a new one), copied part by part: the host never
-    holds them joined (joined, with their tasks, they are the factors' device memory: 16 GB for
-    4096 Diamonds on the H200)."""
+    holds them joined (joined, with their tasks, they are the factors' whole device memory)."""
     out = wp.empty(sum(len(p) for p in parts), dtype=dtype, device=device) if into is None else into
     at, kind = 0, wp.dtype_to_numpy(dtype)
     for part in parts:
@@ -259,7 +257,7 @@ class MeshPatterns(Mapping):
             local, nodes, dofs = self._meshes[key]
             free = np.zeros(3 * nodes, dtype=bool)
             free[dofs] = True
-            made = self._made[key] = Pattern.of_blocks(block_pairs(local), free)
+            made = self._made[key] = element_pattern([local], free)
         return made
 
     def __iter__(self):

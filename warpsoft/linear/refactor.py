@@ -118,10 +118,11 @@ class Block:
 class Slot:
     """Where a worker finds a job's element blocks in its shared memory (bytes): ``ready`` the
     offset of the slot's mark (int64: the last job whose element blocks landed there, plus one),
-    ``at`` that of its element blocks (float64)."""
+    ``at`` that of its element blocks (float64), ``numbers`` the most it holds."""
 
     ready: int
     at: int
+    numbers: int
 
 
 def _factor(cache: dict, block: int, info: Block, system: np.ndarray):
@@ -289,6 +290,7 @@ class Refactorizer:
         self._queues = [deque() for _ in arenas]  # per worker, its jobs' ids in the order sent
         self._cache: dict = {}  # this process's analyses (no workers)
         self._view: dict = {}  # block -> its values' places as CPU arrays (:meth:`_values_of`)
+        self._slot_view: dict = {}  # (worker, slot) -> its element blocks and mark as CPU arrays
         self._procs = []
         context = multiprocessing.get_context("fork") if self.workers else None
         for k in range(self.workers):  # forked: they run CHOLMOD and numpy, never Warp or CUDA
@@ -327,7 +329,7 @@ class Refactorizer:
             at, largest = 8, max((elements[b] for b in blocks), default=0)  # (the header: the blocks analysed ahead)
             listed = []
             for _ in range(min(slots, len(blocks))):
-                listed.append(Slot(at, at + 8))
+                listed.append(Slot(at, at + 8, largest))
                 at += 8 + 8 * largest
             for b in blocks:
                 forward, backward = values[b]
@@ -348,6 +350,18 @@ class Refactorizer:
             views = self._view[block] = tuple(
                 wp.array(np.frombuffer(arena, self.dtype, n, o), dtype=kind, device="cpu", copy=False)
                 for o, n in self.blocks[block].values)
+        return views
+
+    def _slot_views(self, k: int, s: int) -> tuple[wp.array, wp.array]:
+        """Worker ``k``'s slot ``s`` as CPU arrays (made once): its element blocks (mat33d, all it
+        holds) and its mark (int64)."""
+        views = self._slot_view.get((k, s))
+        if views is None:
+            arena, slot = self._arenas[k], self.slots[k][s]
+            views = self._slot_view[k, s] = (
+                wp.array(np.frombuffer(arena, np.float64, slot.numbers, slot.at).reshape(-1, 3, 3), dtype=wp.mat33d,
+                         device="cpu", copy=False),
+                wp.array(np.frombuffer(arena, np.int64, 1, slot.ready), dtype=wp.int64, device="cpu", copy=False))
         return views
 
     def _slot_for(self, block: int, job: int) -> tuple[int, int]:
@@ -402,9 +416,7 @@ class Refactorizer:
             job, count = first + i, self.blocks[block].elements // 9
             k, s = self._slot_for(block, job)
             arena, slot = self._arenas[k], self.slots[k][s]
-            shared = wp.array(np.frombuffer(arena, np.float64, 9 * count, slot.at).reshape(-1, 3, 3),
-                              dtype=wp.mat33d, device="cpu", copy=False)
-            mark = wp.array(np.frombuffer(arena, np.int64, 1, slot.ready), dtype=wp.int64, device="cpu", copy=False)
+            shared, mark = self._slot_views(k, s)
             wp.copy(shared, elements, src_offset=at, count=count, stream=self._side)
             wp.copy(mark, marks, src_offset=i, count=1, stream=self._side)
             at += count
